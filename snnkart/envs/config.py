@@ -1,0 +1,128 @@
+"""Typed configurations of the kart environments: physics, LIDAR, reward, episode.
+
+Every field has a unit in its name or description. Configs are frozen pydantic models that
+reject unknown keys, so a misspelled key in a TOML file or a dict fails with its name.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class LidarConfig(_Frozen):
+    """Ray-cast range sensor. Rays are egocentric in gazebo and steer, world-fixed in grid."""
+
+    n_rays: int = Field(16, ge=1, le=720, description="number of rays")
+    fov_deg: float = Field(360.0, gt=0.0, le=360.0, description="field of view, degrees")
+    range_m: float = Field(3.0, gt=0.0, description="maximum range, metres (original: 3 m)")
+
+
+class RewardConfig(_Frozen):
+    """Per-step reward terms; each is reported in ``info["reward_terms"]`` under its name.
+
+    The reward of a step is the *sum of this step's terms* (the original returned a running
+    total, which rewarded slow driving).
+    """
+
+    progress: float = Field(1.0, description="per metre of progress toward the next checkpoint")
+    checkpoint: float = Field(1.0, description="bonus per checkpoint passed in order")
+    finish: float = Field(10.0, description="bonus for crossing the finish line")
+    time: float = Field(0.01, ge=0.0, description="passive penalty per step")
+    wall: float = Field(5.0, ge=0.0, description="penalty for touching a wall (ends the episode)")
+    stand_still: float = Field(5.0, ge=0.0, description="penalty for standing still too long")
+    steering: float = Field(0.01, ge=0.0, description="steer env: penalty per step at full lock")
+    stand_still_speed_m_s: float = Field(0.2, ge=0.0, description="below this speed = standing")
+    stand_still_steps: int = Field(200, ge=1, description="standing steps that end the episode")
+
+
+class GridPhysics(_Frozen):
+    """Free 4-direction movement: each action adds a world-frame velocity impulse."""
+
+    impulse_m_s: float = Field(0.15, gt=0.0, description="speed change per action step, m/s")
+    max_speed_m_s: float = Field(4.0, gt=0.0, description="speed cap, m/s (original: 4 m/s)")
+    drag_per_step: float = Field(1.005, ge=1.0, description="velocity divisor per step")
+
+
+TURTLEBOT3_PRESET: dict[str, float] = {
+    "max_linear_m_s": 0.22,
+    "max_angular_rad_s": 2.84,
+    "linear_step_m_s": 0.01,
+    "time_limit_factor": 10.0,
+}
+"""TurtleBot3 Burger limits: 0.22 m/s and 2.84 rad/s (ROBOTIS e-Manual)."""
+
+
+class GazeboPhysics(_Frozen):
+    """Differential drive: each discrete step changes the linear OR the angular velocity.
+
+    The default keeps the original's faster scale (2 m/s; 1.53 rad/s reached after a few steps
+    of holding a turn key); ``preset="turtlebot3"`` uses the real robot's limits.
+    """
+
+    preset: Literal["default", "turtlebot3"] = "default"
+    max_linear_m_s: float = Field(2.0, gt=0.0, description="linear speed limit, m/s")
+    linear_step_m_s: float = Field(0.03, gt=0.0, description="linear speed change per step, m/s")
+    max_angular_rad_s: float = Field(
+        0.18 * 3 * 2.84, gt=0.0, description="angular speed limit, rad/s (original: 1.5336)"
+    )
+    angular_decay: float = Field(
+        1.0 / 3.0, ge=0.0, lt=1.0, description="per-step decay of the angular velocity"
+    )
+    drag_per_step: float = Field(1.005, ge=1.0, description="velocity divisor per step")
+    time_limit_factor: float = Field(1.0, gt=0.0, description="scales the track's time limit")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _apply_preset(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("preset") == "turtlebot3":
+            return {**TURTLEBOT3_PRESET, **data}
+        return data
+
+
+class SteerPhysics(_Frozen):
+    """Kinematic bicycle model: the turn rate is speed * tan(steering angle) / wheelbase."""
+
+    max_speed_m_s: float = Field(2.5, gt=0.0, description="speed limit, m/s")
+    throttle_m_s2: float = Field(2.4, gt=0.0, description="acceleration at full throttle, m/s^2")
+    brake_m_s2: float = Field(4.8, gt=0.0, description="deceleration at full brake, m/s^2")
+    wheelbase_m: float = Field(0.3, gt=0.0, description="axle distance, m")
+    max_steer_deg: float = Field(30.0, gt=0.0, lt=90.0, description="steering lock, degrees")
+    steer_rate_deg_s: float = Field(240.0, gt=0.0, description="steering speed, degrees/s")
+    drag_per_step: float = Field(1.005, ge=1.0, description="velocity divisor per step")
+
+    @property
+    def max_steer_rad(self) -> float:
+        return math.radians(self.max_steer_deg)
+
+
+class EnvConfig(_Frozen):
+    """Settings shared by all kart environments."""
+
+    lidar: LidarConfig = LidarConfig()
+    reward: RewardConfig = RewardConfig()
+    max_episode_steps: int | None = Field(
+        None, ge=1, description="time limit in steps; default: the track's time limit"
+    )
+    checkpoint_distance_scale_m: float = Field(
+        10.0, gt=0.0, description="distance observation = min(distance / scale, 1)"
+    )
+    render_scale: float = Field(0.8, gt=0.0, le=4.0, description="pixels on screen per track px")
+
+
+class GridConfig(EnvConfig):
+    physics: GridPhysics = GridPhysics()
+
+
+class GazeboConfig(EnvConfig):
+    physics: GazeboPhysics = GazeboPhysics()
+
+
+class SteerConfig(EnvConfig):
+    physics: SteerPhysics = SteerPhysics()

@@ -1,0 +1,132 @@
+"""gazebo: a two-wheel differential-drive robot (the original's ``drive_env``)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+
+from snnkart.envs.base import KartEnv, ObsField
+from snnkart.envs.config import GazeboConfig
+from snnkart.envs.constants import PIXELS_PER_METRE
+
+
+class GazeboEnv(KartEnv[GazeboConfig]):
+    """A differential-drive robot, as the ROS/Gazebo TurtleBot3 setup: it can turn in place.
+
+    ## Description
+    The robot drives along its heading with no side slip. In discrete mode each step changes
+    EITHER the linear OR the angular velocity, never both; the angular velocity decays quickly
+    (x ``angular_decay`` per step) when no turn key is held, as in the original, so turning
+    needs the key held. ``physics.preset="turtlebot3"`` uses the real robot's limits
+    (0.22 m/s, 2.84 rad/s) and a 10x longer time limit.
+
+    ## Action Space
+    ``action_mode="discrete"`` (default): ``Discrete(5)``: 0 none, 1 accelerate, 2 brake
+    (down to standstill, no reverse), 3 turn left, 4 turn right. ``"continuous"``:
+    ``Box(-1, 1, (2,))`` = (linear, angular) velocity command as ROS ``cmd_vel``
+    (``linear.x``, ``angular.z`` with positive = right, i.e. clockwise on screen) in units of
+    the limits; the linear speed follows the command at most ``linear_step_m_s`` per step
+    (reverse allowed) and the angular velocity follows it with the first-order lag.
+
+    ## Observation Space
+    ``Box`` of float32, size ``n_rays + 7``:
+
+    | index | name | range | meaning |
+    |---|---|---|---|
+    | 0 .. n-1 | lidar | [0, 1] | egocentric rays, ray k at heading - 180 deg + k*fov/n, distance / range, 1 = no hit |
+    | n | linear_velocity | [-1, 1] | forward speed / max linear speed |
+    | n+1 | angular_velocity | [-1, 1] | yaw rate / max angular speed (positive = clockwise on screen) |
+    | n+2 | heading_cos | [-1, 1] | cos of the heading (world frame, y down) |
+    | n+3 | heading_sin | [-1, 1] | sin of the heading |
+    | n+4 | checkpoint_cos | [-1, 1] | cos of the direction to the next checkpoint's midpoint, relative to the heading |
+    | n+5 | checkpoint_sin | [-1, 1] | sin of that direction (positive = to the right) |
+    | n+6 | checkpoint_distance | [0, 1] | min(distance / checkpoint_distance_scale_m, 1) |
+
+    ## Rewards
+    As :class:`~snnkart.envs.grid.GridEnv`: progress, checkpoint, finish, time, wall and
+    stand-still terms, each in ``info["reward_terms"]``.
+
+    ## Starting State
+    The track's spawn point and heading, +-``spawn.jitter`` px per axis, at rest.
+
+    ## Episode End
+    ``terminated``: finish, wall contact, or standing still too long. ``truncated``: time limit.
+
+    ## Arguments
+    ``track``, ``action_mode``, ``config`` (:class:`GazeboConfig` or a dict), ``render_mode``.
+
+    ## Version History
+    * v0: initial version (original scale: 2 m/s, +0.03 m/s per accelerate step).
+    """
+
+    config_class = GazeboConfig
+    env_name = "gazebo"
+    egocentric = True
+    ACTION_NAMES: ClassVar[tuple[str, ...]] = ("none", "accelerate", "brake", "left", "right")
+
+    def _make_action_space(self) -> spaces.Space[Any]:
+        if self.action_mode == "discrete":
+            return spaces.Discrete(5)
+        return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
+
+    def _kinematic_fields(self) -> tuple[ObsField, ...]:
+        return (
+            ObsField("linear_velocity", 1, -1.0, 1.0, "forward speed / max linear speed"),
+            ObsField("angular_velocity", 1, -1.0, 1.0, "yaw rate / max angular speed"),
+            ObsField("heading_cos", 1, -1.0, 1.0, "cos of the heading"),
+            ObsField("heading_sin", 1, -1.0, 1.0, "sin of the heading"),
+        )
+
+    def _time_limit_factor(self) -> float:
+        return self.config.physics.time_limit_factor
+
+    def _reset_vehicle(self) -> None:
+        p = self.config.physics
+        self._v = 0.0  # px/s along the heading
+        self._w = 0.0  # rad/s, clockwise on screen
+        self._vmax = p.max_linear_m_s * PIXELS_PER_METRE
+        self._wmax = p.max_angular_rad_s
+        self._dv = p.linear_step_m_s * PIXELS_PER_METRE
+        self._decay = p.angular_decay
+        self._drag = p.drag_per_step
+
+    def _apply_action(self, action: Any) -> None:
+        w_cmd = 0.0
+        if self.action_mode == "discrete":
+            a = int(action)
+            if a == 1:
+                self._v = min(self._v + self._dv, self._vmax)
+            elif a == 2:
+                self._v = max(self._v - self._dv, 0.0)
+            elif a == 3:
+                w_cmd = -self._wmax
+            elif a == 4:
+                w_cmd = self._wmax
+        else:
+            lin, ang = (float(a) for a in np.clip(action, -1.0, 1.0))
+            self._v += min(max(lin * self._vmax - self._v, -self._dv), self._dv)
+            w_cmd = ang * self._wmax
+        self._w = self._w * self._decay + (1.0 - self._decay) * w_cmd
+        h = self._heading
+        self._body.velocity = (self._v * math.cos(h), self._v * math.sin(h))
+        self._body.angular_velocity = self._w
+
+    def _after_physics(self) -> None:
+        self._heading = self._body.angle  # integrated by pymunk from the angular velocity
+        self._moved_v = self._v
+        if self.action_mode == "discrete":
+            self._v /= self._drag
+
+    def _write_kinematics(self, out: np.ndarray, start: int) -> int:
+        out[start] = self._v / self._vmax
+        out[start + 1] = self._w / self._wmax
+        out[start + 2] = math.cos(self._heading)
+        out[start + 3] = math.sin(self._heading)
+        return start + 4
+
+    @property
+    def speed_m_s(self) -> float:
+        return abs(self._v) / PIXELS_PER_METRE
