@@ -1,0 +1,42 @@
+"""The demo job: a rendered rollout of the scripted driver, written to a GIF."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from snnkart.envs.constants import RENDER_FPS
+from snnkart.io import atomic_path
+
+
+def scripted_gif(
+    env_name: str, track: str, out: str | Path, seed: int = 0, every: int = 3
+) -> dict[str, Any]:
+    """Drive one episode with :class:`~snnkart.drivers.ScriptedDriver` and save every
+    ``every``-th frame as a GIF at real-time speed. Returns the episode summary."""
+    import imageio.v2 as imageio
+    from rich.progress import Progress
+
+    from snnkart.drivers import ScriptedDriver, drive_episode
+    from snnkart.envs import make
+
+    if every < 1:
+        raise ValueError(f"every must be >= 1, got {every}")
+    env = make(env_name, track=track, render_mode="rgb_array").unwrapped
+    frames = []
+    try:
+        with Progress(transient=True) as progress:
+            task = progress.add_task(f"driving {env_name} on {track}", total=env.max_episode_steps)
+
+            def record(e: Any) -> None:
+                progress.advance(task)
+                if e._steps % every == 0:
+                    frames.append(e.render())
+
+            result = drive_episode(env, seed=seed, driver=ScriptedDriver(env), on_step=record)
+            frames.append(env.render())
+    finally:
+        env.close()
+    with atomic_path(out) as tmp:
+        imageio.mimsave(tmp, frames, format="GIF", duration=1000.0 * every / RENDER_FPS, loop=0)
+    return result
