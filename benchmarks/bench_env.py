@@ -61,8 +61,11 @@ def lidar_side_by_side(n_rays: int, queries: int) -> dict[str, float]:
     rng = np.random.default_rng(1)
     xmin, ymin, xmax, ymax = env.track.bounds
     poses = np.column_stack(
-        [rng.uniform(xmin, xmax, queries), rng.uniform(ymin, ymax, queries),
-         rng.uniform(-math.pi, math.pi, queries)]
+        [
+            rng.uniform(xmin, xmax, queries),
+            rng.uniform(ymin, ymax, queries),
+            rng.uniform(-math.pi, math.pi, queries),
+        ]
     )
     offsets = -math.pi + np.arange(n_rays) * (2 * math.pi / n_rays)
     rng_px = 300.0
@@ -116,21 +119,27 @@ def main() -> None:
         single = steps_per_second(gym.make(env_id, track="big_S"), args.steps)
         vector = vector_steps_per_second(env_id, args.vector_envs, args.steps)
         per_env[name] = {"single_steps_per_s": single, "sync_vector_steps_per_s": vector}
-        print(f"{name:7s} single {single:9.0f} steps/s   sync-vector x{args.vector_envs} "
-              f"{vector:9.0f} steps/s")
+        print(
+            f"{name:7s} single {single:9.0f} steps/s   sync-vector x{args.vector_envs} "
+            f"{vector:9.0f} steps/s"
+        )
     results["envs"] = per_env
     steer = per_env["steer"]["single_steps_per_s"]
     results["target_steer_steps_per_s"] = 10000
     results["steer_vs_target"] = steer / 10000
     results["steer_vs_original_110"] = steer / 110
-    print(f"steer single vs target 10,000: {steer / 10000:.2f}x; vs the original's ~110 steps/s: "
-          f"{steer / 110:.0f}x")
+    print(
+        f"steer single vs target 10,000: {steer / 10000:.2f}x; vs the original's ~110 steps/s: "
+        f"{steer / 110:.0f}x"
+    )
     for n in (16, 59):
         lid = lidar_side_by_side(n, 2000)
         results[f"lidar_{n}_rays"] = lid
-        print(f"LIDAR {n} rays: compiled {lid['compiled_us_per_scan']:.1f} us, pymunk queries "
-              f"{lid['pymunk_us_per_scan']:.1f} us per scan -> {lid['speedup']:.1f}x "
-              f"(max |difference| {lid['max_abs_difference']:.2e})")
+        print(
+            f"LIDAR {n} rays: compiled {lid['compiled_us_per_scan']:.1f} us, pymunk queries "
+            f"{lid['pymunk_us_per_scan']:.1f} us per scan -> {lid['speedup']:.1f}x "
+            f"(max |difference| {lid['max_abs_difference']:.2e})"
+        )
     path = results_path("bench_env")
     path.write_text(json.dumps(results, indent=2) + "\n")
     print(f"results written to {path}")

@@ -147,8 +147,9 @@ class ScriptedDriver:
         return 3 * t_idx + s_idx
 
 
-def drive_episode(env: KartEnv, seed: int | None = None, driver: ScriptedDriver | None = None,
-                  on_step: Any = None) -> dict[str, Any]:
+def drive_episode(
+    env: KartEnv, seed: int | None = None, driver: ScriptedDriver | None = None, on_step: Any = None
+) -> dict[str, Any]:
     """Run one episode with the scripted driver; return the final info plus return and length."""
     driver = driver or ScriptedDriver(env)
     driver.reset()

@@ -68,7 +68,9 @@ def ray_offsets(n_rays: int, fov: float) -> np.ndarray:
     if n_rays < 1:
         raise ValueError(f"n_rays must be >= 1, got {n_rays}")
     if not 0.0 < fov <= 2.0 * math.pi + 1e-9:
-        raise ValueError(f"the LIDAR field of view must be in (0, 360] degrees, got {math.degrees(fov)}")
+        raise ValueError(
+            f"the LIDAR field of view must be in (0, 360] degrees, got {math.degrees(fov)}"
+        )
     if abs(fov - 2.0 * math.pi) < 1e-9:
         return -math.pi + np.arange(n_rays) * (2.0 * math.pi / n_rays)
     if n_rays == 1:

@@ -27,6 +27,7 @@ whose jitter box lets the kart touch a wall.
 
 from __future__ import annotations
 
+import itertools
 import math
 import sys
 from dataclasses import dataclass, field
@@ -83,7 +84,7 @@ class Track:
         segs = [
             (p[0], p[1], q[0], q[1])
             for line in self.walls
-            for p, q in zip(line[:-1], line[1:])
+            for p, q in itertools.pairwise(line)
             if p != q
         ]
         object.__setattr__(self, "segments", np.asarray(segs, dtype=np.float64).reshape(-1, 4))
@@ -97,7 +98,7 @@ class Track:
         """(xmin, ymin, xmax, ymax) of walls and checkpoints, px."""
         pts = [p for line in self.walls for p in line]
         pts += [c.a for c in self.checkpoints] + [c.b for c in self.checkpoints]
-        xs, ys = zip(*pts)
+        xs, ys = zip(*pts, strict=True)
         return min(xs), min(ys), max(xs), max(ys)
 
     def to_toml(self, attribution: str = "") -> str:
@@ -174,7 +175,9 @@ def parse_track(text: str, source: str = "<string>") -> Track:
     where = _Where(source)
     schema = raw.get("schema", TRACK_SCHEMA)
     if schema != TRACK_SCHEMA:
-        raise TrackError(f"{source}: schema {schema!r} is not supported (expected {TRACK_SCHEMA!r})")
+        raise TrackError(
+            f"{source}: schema {schema!r} is not supported (expected {TRACK_SCHEMA!r})"
+        )
     ppm = _number(raw.get("pixels_per_metre", PIXELS_PER_METRE), where("pixels_per_metre"))
     if ppm != PIXELS_PER_METRE:
         raise TrackError(
