@@ -109,10 +109,28 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         low = np.concatenate([np.full(f.size, f.low) for f in self.observation_layout])
         high = np.concatenate([np.full(f.size, f.high) for f in self.observation_layout])
         self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32))
+        self._obs_dim = int(low.shape[0])
         self.action_space = self._make_action_space()
 
         self._build_world()
+        self._x, self._y = self.track.spawn_position
+        self._heading = 0.0
+        self._next_cp = 0
+        self._finished = False
+        self._passed_this_step = 0
+        self._touched_wall = False
+        self._steps = 0
+        self._still_steps = 0
+        self._still_radius = self.config.reward.stand_still_radius_m * PIXELS_PER_METRE
+        self._anchor = self.track.spawn_position
+        self._checkpoint_times: list[float] = []
+        self._needs_reset = True
+        self._last_action: Any = None
+        self._last_terms: dict[str, float] = {}
+        self._episode_return = 0.0
         self._reset_state()
+        self._reset_vehicle()
+        np.add(self._ray_offsets, self._heading, out=self._ray_angles)
         self._renderer: Any = None
 
     # -- subclass interface ---------------------------------------------------------------------
@@ -183,10 +201,12 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         crashed = self._touched_wall and not finished
         if crashed:
             terms["wall"] = -rw.wall
-        if self.speed_m_s < rw.stand_still_speed_m_s:
-            self._still_steps += 1
-        else:
+        # Standing still = staying within a small circle, so hovering back and forth counts.
+        if math.hypot(self._x - self._anchor[0], self._y - self._anchor[1]) > self._still_radius:
+            self._anchor = (self._x, self._y)
             self._still_steps = 0
+        else:
+            self._still_steps += 1
         stood_still = not (finished or crashed) and self._still_steps >= rw.stand_still_steps
         if stood_still:
             terms["stand_still"] = -rw.stand_still
@@ -221,6 +241,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         body.angular_velocity = 0.0
         self._space.reindex_shapes_for_body(body)
         self._reset_vehicle()
+        self._anchor = (self._x, self._y)
         self._needs_reset = False
         obs = self._observe()
         if self.render_mode == "human":
@@ -294,17 +315,17 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._touched_wall = False
         self._steps = 0
         self._still_steps = 0
-        self._checkpoint_times: list[float] = []
+        self._checkpoint_times = []
         self._needs_reset = True
-        self._last_action: Any = None
-        self._last_terms: dict[str, float] = {}
+        self._last_action = None
+        self._last_terms = {}
         self._episode_return = 0.0
 
     def _observe(self) -> np.ndarray:
         n = self._lidar.shape[0]
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
         cast_rays(self._x, self._y, self._ray_angles, self._segments, self._ray_range, self._lidar)
-        obs = np.empty(self.observation_space.shape, dtype=np.float32)
+        obs = np.empty(self._obs_dim, dtype=np.float32)
         obs[:n] = self._lidar
         k = self._write_kinematics(obs, n)
         gx, gy = self._goals[self._next_cp]
@@ -346,7 +367,38 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
     @property
     def next_checkpoint(self) -> int:
+        """Index of the checkpoint to pass next (0-based)."""
         return self._next_cp
+
+    @property
+    def lap_finished(self) -> bool:
+        return self._finished
+
+    @property
+    def elapsed_time(self) -> float:
+        """Simulated seconds since the episode began."""
+        return self._steps * DT
+
+    @property
+    def episode_steps(self) -> int:
+        return self._steps
+
+    @property
+    def lidar_distances(self) -> np.ndarray:
+        """Normalised ray distances of the last observation, in [0, 1] (1 = no hit)."""
+        return self._lidar
+
+    @property
+    def last_action(self) -> Any:
+        return self._last_action
+
+    @property
+    def last_reward_terms(self) -> dict[str, float]:
+        return self._last_terms
+
+    @property
+    def episode_return(self) -> float:
+        return self._episode_return
 
     @property
     def lidar_hits(self) -> np.ndarray:

@@ -34,12 +34,16 @@ class RewardConfig(_Frozen):
     progress: float = Field(1.0, description="per metre of progress toward the next checkpoint")
     checkpoint: float = Field(1.0, description="bonus per checkpoint passed in order")
     finish: float = Field(10.0, description="bonus for crossing the finish line")
-    time: float = Field(0.01, ge=0.0, description="passive penalty per step")
+    time: float = Field(
+        0.001, ge=0.0, description="passive penalty per step (a full time limit costs less than a crash)"
+    )
     wall: float = Field(5.0, ge=0.0, description="penalty for touching a wall (ends the episode)")
     stand_still: float = Field(5.0, ge=0.0, description="penalty for standing still too long")
     steering: float = Field(0.01, ge=0.0, description="steer env: penalty per step at full lock")
-    stand_still_speed_m_s: float = Field(0.2, ge=0.0, description="below this speed = standing")
-    stand_still_steps: int = Field(200, ge=1, description="standing steps that end the episode")
+    stand_still_radius_m: float = Field(
+        0.2, ge=0.0, description="staying within this distance of one spot = standing still"
+    )
+    stand_still_steps: int = Field(200, ge=1, description="steps standing still that end the episode")
 
 
 class GridPhysics(_Frozen):

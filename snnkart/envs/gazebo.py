@@ -53,7 +53,8 @@ class GazeboEnv(KartEnv[GazeboConfig]):
     The track's spawn point and heading, +-``spawn.jitter`` px per axis, at rest.
 
     ## Episode End
-    ``terminated``: finish, wall contact, or standing still too long. ``truncated``: time limit.
+    ``terminated``: finish, wall contact, or standing still (within
+    ``stand_still_radius_m`` of one spot for ``stand_still_steps`` steps). ``truncated``: time limit.
 
     ## Arguments
     ``track``, ``action_mode``, ``config`` (:class:`GazeboConfig` or a dict), ``render_mode``.

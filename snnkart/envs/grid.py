@@ -50,8 +50,8 @@ class GridEnv(KartEnv[GridConfig]):
     The track's spawn point plus a uniform offset of +-``spawn.jitter`` px per axis, at rest.
 
     ## Episode End
-    ``terminated``: finish line crossed, wall touched, or speed below the stand-still speed
-    for ``stand_still_steps`` steps. ``truncated``: the time limit (``max_episode_steps``,
+    ``terminated``: finish line crossed, wall touched, or standing still (staying within
+    ``stand_still_radius_m`` of one spot) for ``stand_still_steps`` steps. ``truncated``: the time limit (``max_episode_steps``,
     default the track's ``time_limit_s``).
 
     ## Arguments

@@ -28,6 +28,7 @@ whose jitter box lets the kart touch a wall.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import sys
 from dataclasses import dataclass, field
@@ -106,8 +107,8 @@ class Track:
         lines = [f"# {line}".rstrip() for line in attribution.splitlines()] if attribution else []
         lines += [
             f'schema = "{TRACK_SCHEMA}"',
-            f'name = "{self.name}"',
-            f'description = "{self.description}"',
+            f"name = {json.dumps(self.name)}",
+            f"description = {json.dumps(self.description)}",
             f"pixels_per_metre = {PIXELS_PER_METRE}  # x right, y down, px",
             f"time_limit_s = {self.time_limit_s}  # episode truncation at the default speed scale",
             "",

@@ -1,0 +1,260 @@
+"""pygame renderer of the kart envs: the track on the left, a telemetry panel on the right.
+
+``KartEnv.render()`` creates one :class:`Renderer` lazily and calls :meth:`Renderer.draw` per
+frame. In ``rgb_array`` mode the frame is drawn off screen and returned as an ``(H, W, 3)``
+uint8 array; only pygame's font module is initialised, so no display (and no
+``SDL_VIDEODRIVER`` setting, which would leak into later windows of the process) is needed.
+In ``human`` mode a window is opened; without a display (Linux with neither ``DISPLAY`` nor
+``WAYLAND_DISPLAY``) the SDL ``dummy`` video driver is used unless one is already chosen.
+
+pygame is imported only here, so ``import snnkart`` and headless training never load it.
+The static parts (background, metre grid, walls, panel title) are drawn once into a surface;
+checkpoints, LIDAR rays, the kart and the telemetry are redrawn every frame.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE
+
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+import pygame  # after the prompt switch
+
+if TYPE_CHECKING:
+    from snnkart.envs.base import KartEnv
+
+WORLD_SIZE_PX = 1000.0
+"""Track coordinates shown on screen: 0 .. 1000 px on each axis."""
+
+PANEL_WIDTH_PX = 360.0
+"""Width of the side panel at ``render_scale`` 1."""
+
+Colour = tuple[int, int, int]
+
+BACKGROUND: Colour = (18, 20, 26)
+GRID: Colour = (27, 30, 38)
+WALL: Colour = (200, 202, 210)
+PANEL: Colour = (29, 32, 41)
+PANEL_RULE: Colour = (62, 66, 80)
+CHECKPOINT_PASSED: Colour = (58, 156, 88)
+CHECKPOINT_NEXT: Colour = (255, 218, 40)
+CHECKPOINT_LATER: Colour = (88, 92, 106)
+FINISH_LIGHT: Colour = (240, 240, 240)
+FINISH_DARK: Colour = (210, 40, 45)
+RAY: Colour = (46, 104, 122)
+RAY_HIT: Colour = (90, 220, 255)
+KART: Colour = (255, 128, 24)
+"""Kart body colour; no other element uses it (tests look for it)."""
+KART_MARK: Colour = (40, 24, 8)
+TEXT: Colour = (226, 229, 236)
+TEXT_DIM: Colour = (138, 144, 160)
+POSITIVE: Colour = (110, 212, 124)
+NEGATIVE: Colour = (238, 104, 92)
+
+
+def _has_display() -> bool:
+    """Whether a window can be opened (only Linux and BSD may lack a display server)."""
+    if not sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+class Renderer:
+    """Draws one kart env; see the module docstring.
+
+    Args:
+        env: the (unwrapped) env to draw; read on every :meth:`draw`.
+        human: open a window and show the frames in real time instead of returning arrays.
+    """
+
+    def __init__(self, env: KartEnv, human: bool) -> None:
+        self.env = env
+        self.human = human
+        self.scale = s = float(env.config.render_scale)
+        self.track_width = round(WORLD_SIZE_PX * s)
+        self.size = (self.track_width + round(PANEL_WIDTH_PX * s), round(WORLD_SIZE_PX * s))
+        self._clock: pygame.time.Clock | None = None
+        self._closed = False
+        if human:
+            if not _has_display():
+                os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+            pygame.display.init()
+            self._frame = pygame.display.set_mode(self.size)
+            pygame.display.set_caption(f"snnkart — {env.env_name} on {env.track.name}")
+            self._clock = pygame.time.Clock()
+        else:
+            self._frame = pygame.Surface(self.size)
+        pygame.font.init()
+        self._pad = round(18 * s)
+        self._title_font = pygame.font.Font(None, max(12, round(40 * s)))
+        self._font = pygame.font.Font(None, max(10, round(27 * s)))
+        self._small_font = pygame.font.Font(None, max(9, round(22 * s)))
+        self._line_height = round(self._font.get_linesize() * 1.3)
+        self._kart_radius = KART_RADIUS_PX * s
+        self._finish_squares = self._checkered(env.track.finish.a, env.track.finish.b)
+        self._panel_top = 0  # set by _draw_static, below the panel title
+        self._static = self._draw_static()
+
+    # -- public API ----------------------------------------------------------------------------
+
+    def draw(self) -> np.ndarray | None:
+        """Draw the current state; return the RGB frame, or None in human mode."""
+        frame = self._frame
+        frame.blit(self._static, (0, 0))
+        self._draw_checkpoints(frame)
+        self._draw_lidar(frame)
+        self._draw_kart(frame)
+        self._draw_telemetry(frame)
+        if not self.human:
+            return np.ascontiguousarray(pygame.surfarray.array3d(frame).transpose(1, 0, 2))
+        pygame.event.pump()
+        pygame.display.flip()
+        assert self._clock is not None
+        self._clock.tick(self.env.metadata["render_fps"])
+        return None
+
+    def close(self) -> None:
+        """Close the window (human mode); safe to call more than once."""
+        if self.human and not self._closed:
+            pygame.display.quit()
+        self._closed = True
+
+    # -- static layer --------------------------------------------------------------------------
+
+    def _draw_static(self) -> pygame.Surface:
+        s = self.scale
+        surf = pygame.Surface(self.size)
+        surf.fill(BACKGROUND)
+        step = PIXELS_PER_METRE * s  # one line per metre
+        for k in range(1, math.ceil(WORLD_SIZE_PX / PIXELS_PER_METRE)):
+            c = round(k * step)
+            pygame.draw.line(surf, GRID, (c, 0), (c, self.size[1]))
+            pygame.draw.line(surf, GRID, (0, c), (self.track_width, c))
+        width = max(2, round(3.5 * s))
+        for line in self.env.track.walls:
+            pts = [self._screen(p) for p in line]
+            pygame.draw.lines(surf, WALL, False, pts, width)
+            for p in pts:  # round joints, so sharp corners have no notches
+                pygame.draw.circle(surf, WALL, p, width / 2)
+
+        pygame.draw.rect(surf, PANEL, (self.track_width, 0, self.size[0], self.size[1]))
+        pygame.draw.line(surf, PANEL_RULE, (self.track_width, 0), (self.track_width, self.size[1]))
+        x, y = self.track_width + self._pad, self._pad
+        title = self._title_font.render(self.env.env_name, True, TEXT)
+        surf.blit(title, (x, y))
+        y += title.get_height() + round(4 * s)
+        track = self._font.render(f"on {self.env.track.name}", True, TEXT_DIM)
+        surf.blit(track, (x, y))
+        self._panel_top = y + track.get_height() + self._pad
+        return surf
+
+    # -- dynamic layers ------------------------------------------------------------------------
+
+    def _draw_checkpoints(self, frame: pygame.Surface) -> None:
+        env = self.env
+        s = self.scale
+        cps = env.track.checkpoints
+        nxt = env.next_checkpoint
+        thin, thick = max(1, round(2 * s)), max(2, round(4 * s))
+        for i, cp in enumerate(cps[:-1]):
+            if i < nxt:
+                colour, width = CHECKPOINT_PASSED, thin
+            elif i == nxt:
+                colour, width = CHECKPOINT_NEXT, thick
+            else:
+                colour, width = CHECKPOINT_LATER, thin
+            pygame.draw.line(frame, colour, self._screen(cp.a), self._screen(cp.b), width)
+        if nxt == len(cps) - 1 and not env.lap_finished:
+            a, b = self._screen(cps[-1].a), self._screen(cps[-1].b)
+            pygame.draw.line(frame, CHECKPOINT_NEXT, a, b, 3 * thick)
+        for colour, square in self._finish_squares:
+            pygame.draw.polygon(frame, colour, square)
+
+    def _draw_lidar(self, frame: pygame.Surface) -> None:
+        env = self.env
+        origin = self._screen(env.position)
+        dot = max(2, round(3 * self.scale))
+        for hit, distance in zip(env.lidar_hits, env.lidar_distances, strict=True):
+            end = self._screen(hit)
+            pygame.draw.aaline(frame, RAY, origin, end)
+            if distance < 1.0:
+                pygame.draw.circle(frame, RAY_HIT, end, dot)
+
+    def _draw_kart(self, frame: pygame.Surface) -> None:
+        env = self.env
+        cx, cy = self._screen(env.position)
+        r = self._kart_radius
+        pygame.draw.circle(frame, KART, (cx, cy), r)
+        pygame.draw.circle(frame, KART_MARK, (cx, cy), r, max(1, round(1.5 * self.scale)))
+        if env.egocentric:
+            h = env.heading
+            tip = (cx + r * math.cos(h), cy + r * math.sin(h))
+            pygame.draw.line(frame, KART_MARK, (cx, cy), tip, max(2, round(3 * self.scale)))
+
+    def _draw_telemetry(self, frame: pygame.Surface) -> None:
+        env = self.env
+        n = len(env.track.checkpoints)
+        checkpoint = "finished" if env.lap_finished else f"{env.next_checkpoint + 1} / {n}"
+        y = self._panel_top
+        for label, value in (
+            ("speed", f"{env.speed_m_s:.2f} m/s"),
+            ("lap time", f"{env.elapsed_time:.2f} s"),
+            ("next checkpoint", checkpoint),
+            ("action", env.describe_action(env.last_action)),
+        ):
+            y = self._row(frame, y, label, value, TEXT)
+        y = self._row(frame, y, "return", f"{env.episode_return:+.3f}", TEXT)
+        y = self._rule(frame, y)
+        heading = self._small_font.render("reward terms, last step", True, TEXT_DIM)
+        frame.blit(heading, (self.track_width + self._pad, y))
+        y += round(heading.get_height() * 1.6)
+        for name, value in env.last_reward_terms.items():
+            colour = POSITIVE if value > 0 else NEGATIVE if value < 0 else TEXT_DIM
+            y = self._row(frame, y, name, f"{value:+.3f}", colour)
+
+    # -- helpers -------------------------------------------------------------------------------
+
+    def _screen(self, p: tuple[float, float] | np.ndarray) -> tuple[float, float]:
+        return (float(p[0]) * self.scale, float(p[1]) * self.scale)
+
+    def _row(self, frame: pygame.Surface, y: int, label: str, value: str, colour: Colour) -> int:
+        """Draw ``label`` left and ``value`` right-aligned; return the next row's top."""
+        left = self.track_width + self._pad
+        frame.blit(self._font.render(label, True, TEXT_DIM), (left, y))
+        text = self._font.render(value, True, colour)
+        frame.blit(text, (self.size[0] - self._pad - text.get_width(), y))
+        return y + self._line_height
+
+    def _rule(self, frame: pygame.Surface, y: int) -> int:
+        """Draw a horizontal separator in the panel; return the top of what follows."""
+        y += self._pad // 2
+        left, right = self.track_width + self._pad, self.size[0] - self._pad
+        pygame.draw.line(frame, PANEL_RULE, (left, y), (right, y))
+        return y + self._pad
+
+    def _checkered(
+        self, a: tuple[float, float], b: tuple[float, float]
+    ) -> list[tuple[Colour, list[tuple[float, float]]]]:
+        """Squares of a two-row chequered band along the finish line ``a``-``b``."""
+        (ax, ay), (bx, by) = self._screen(a), self._screen(b)
+        length = math.hypot(bx - ax, by - ay)
+        ux, uy = (bx - ax) / length, (by - ay) / length
+        nx, ny = -uy, ux
+        q = max(3.0, 7.0 * self.scale)
+        squares = []
+        for i in range(math.ceil(length / q)):
+            t0, t1 = i * q, min((i + 1) * q, length)
+            for row, (o0, o1) in enumerate(((-q, 0.0), (0.0, q))):
+                colour = FINISH_LIGHT if (i + row) % 2 == 0 else FINISH_DARK
+                corners = [
+                    (ax + ux * t + nx * o, ay + uy * t + ny * o)
+                    for t, o in ((t0, o0), (t1, o0), (t1, o1), (t0, o1))
+                ]
+                squares.append((colour, corners))
+        return squares

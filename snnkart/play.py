@@ -1,0 +1,159 @@
+"""Drive a kart with the keyboard (``snnkart play``).
+
+The keys are polled every step, so holding a key keeps acting. W/A/S/D drive (grid: up, left,
+down, right; gazebo: accelerate, turn left, brake, turn right; steer: throttle, steer left,
+brake, steer right), Space also brakes in gazebo and steer, R restarts the episode and Esc or
+closing the window quits. When an episode ends, one line with its outcome and return is
+printed and a new episode starts.
+
+pygame is imported inside :func:`run_play` only; the key-to-action mappings are plain
+functions of :class:`Keys`, so they can be used and tested without pygame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+
+class Keys(NamedTuple):
+    """The driving keys held during one step."""
+
+    w: bool
+    a: bool
+    s: bool
+    d: bool
+    space: bool
+
+
+def grid_action(keys: Keys) -> int:
+    """0 none, 1 up (W), 2 down (S), 3 left (A), 4 right (D); D > A > S > W as the original."""
+    if keys.d:
+        return 4
+    if keys.a:
+        return 3
+    if keys.s:
+        return 2
+    if keys.w:
+        return 1
+    return 0
+
+
+def gazebo_action(keys: Keys) -> int:
+    """0 none, 1 accelerate (W), 2 brake (S or Space), 3 left (A), 4 right (D); D > A > brake > W."""
+    if keys.d:
+        return 4
+    if keys.a:
+        return 3
+    if keys.s or keys.space:
+        return 2
+    if keys.w:
+        return 1
+    return 0
+
+
+def steer_action(keys: Keys) -> int:
+    """The steer env's action ``3 * throttle + steer`` for the held keys.
+
+    Throttle: 0 brake (S or Space; wins over W), 1 coast, 2 throttle (W). Steer: 0 left (A),
+    1 straight (neither or both of A and D), 2 right (D).
+    """
+    throttle = 0 if keys.s or keys.space else 2 if keys.w else 1
+    steer = 1 if keys.a == keys.d else 0 if keys.a else 2
+    return 3 * throttle + steer
+
+
+KEY_ACTIONS: dict[str, Callable[[Keys], int]] = {
+    "grid": grid_action,
+    "gazebo": gazebo_action,
+    "steer": steer_action,
+}
+"""Discrete action of each env for the held keys."""
+
+KEY_HELP: dict[str, str] = {
+    "grid": "W/A/S/D move up/left/down/right",
+    "gazebo": "W accelerate, S or Space brake, A/D turn",
+    "steer": "W throttle, S or Space brake, A/D steer",
+}
+
+
+def episode_outcome(info: dict[str, Any], truncated: bool) -> str:
+    """How an episode ended, from the ``info`` of its last step."""
+    if info["lap_finished"]:
+        return f"finished in {info['lap_time']:.2f} s"
+    if info["crashed"]:
+        return "hit a wall"
+    if info["stood_still"]:
+        return "stood still too long"
+    if truncated:
+        return "time limit"
+    raise ValueError("the episode has not ended")
+
+
+def run_play(
+    env_name: str,
+    track: str,
+    max_steps: int | None = None,
+    seed: int | None = None,
+    on_step: Callable[[int], None] | None = None,
+) -> int:
+    """Open a window and drive ``env_name`` on ``track`` with the keyboard until Esc.
+
+    Args:
+        env_name: any spelling accepted by :func:`snnkart.envs.resolve_env_name`.
+        track: built-in track name or track file.
+        max_steps: quit after this many steps (demos, tests); None = until the window closes.
+        seed: seed of the first episode.
+        on_step: called with the step index at the start of every step, before the events
+            are read (tests post key events from it).
+
+    Returns:
+        The number of episodes that ended (finish, crash, standing still or time limit);
+        episodes restarted with R or cut short by quitting are not counted.
+    """
+    import pygame
+
+    from snnkart.envs import make, resolve_env_name
+    from snnkart.envs.base import KartEnv
+
+    name = resolve_env_name(env_name)
+    to_action = KEY_ACTIONS[name]
+    env = make(name, track=track, render_mode="human")
+    episodes = 0
+    try:
+        env.reset(seed=seed)  # opens the window, so pygame's events and keys work from here
+        kart = env.unwrapped
+        assert isinstance(kart, KartEnv)
+        print(f"{name} on {kart.track.name}: {KEY_HELP[name]}; R restart, Esc quit")
+        episode_return = 0.0
+        step = 0
+        while max_steps is None or step < max_steps:
+            if on_step is not None:
+                on_step(step)
+            for event in pygame.event.get():
+                if event.type == pygame.QUIT or (
+                    event.type == pygame.KEYDOWN and event.key == pygame.K_ESCAPE
+                ):
+                    return episodes
+                if event.type == pygame.KEYDOWN and event.key == pygame.K_r:
+                    env.reset()
+                    episode_return = 0.0
+            held = pygame.key.get_pressed()
+            keys = Keys(
+                w=held[pygame.K_w],
+                a=held[pygame.K_a],
+                s=held[pygame.K_s],
+                d=held[pygame.K_d],
+                space=held[pygame.K_SPACE],
+            )
+            _, reward, terminated, truncated, info = env.step(to_action(keys))
+            step += 1
+            episode_return += float(reward)
+            if terminated or truncated:
+                episodes += 1
+                print(f"{episode_outcome(info, truncated)}, return {episode_return:+.2f}")
+                env.reset()
+                episode_return = 0.0
+    finally:
+        env.close()
+    return episodes

@@ -1,0 +1,149 @@
+"""Checkpoints: torch state dicts (loaded with ``weights_only=True``) + JSON metadata.
+
+The metadata carries the versions, the training config and the *env spec* with its hash (env,
+track geometry, action mode, observation layout, env config), so a checkpoint is never used
+silently with another env. Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+from dataclasses import dataclass
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from snnkart.envs.base import KartEnv
+from snnkart.io import atomic_path
+
+CHECKPOINT_SCHEMA = "snnkart/checkpoint/v1"
+
+
+class CheckpointError(ValueError):
+    """A checkpoint is missing, corrupt or does not fit the env it is used with."""
+
+
+def env_spec(env: KartEnv) -> dict[str, Any]:
+    """Everything about an env that a trained policy depends on."""
+    track_text = env.track.to_toml()
+    return {
+        "env": env.env_name,
+        "track": env.track.name,
+        "track_sha256": hashlib.sha256(track_text.encode()).hexdigest(),
+        "action_mode": env.action_mode,
+        "action_space": str(env.action_space),
+        "observation_layout": [[f.name, f.size, f.low, f.high] for f in env.observation_layout],
+        "obs_dim": int(env.observation_space.shape[0]),
+        "env_config": env.config.model_dump(mode="json"),
+    }
+
+
+def spec_hash(spec: dict[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for pkg in ("snnkart", "torch", "snntorch", "gymnasium", "numpy", "pymunk", "nir"):
+        try:
+            out[pkg] = importlib_metadata.version(pkg)
+        except importlib_metadata.PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+@dataclass
+class RunningMeanStd:
+    """Running mean and variance of observations (parallel algorithm, float64)."""
+
+    mean: np.ndarray
+    var: np.ndarray
+    count: float = 1e-4
+
+    @classmethod
+    def zeros(cls, dim: int) -> RunningMeanStd:
+        return cls(np.zeros(dim), np.ones(dim))
+
+    def update(self, batch: np.ndarray) -> None:
+        b_mean, b_var, b_count = batch.mean(0), batch.var(0), batch.shape[0]
+        delta = b_mean - self.mean
+        total = self.count + b_count
+        self.mean = self.mean + delta * b_count / total
+        m2 = self.var * self.count + b_var * b_count + delta**2 * self.count * b_count / total
+        self.var = m2 / total
+        self.count = total
+
+    def normalize(self, obs: np.ndarray, clip: float) -> np.ndarray:
+        out = (obs - self.mean) / np.sqrt(self.var + 1e-8)
+        return np.clip(out, -clip, clip).astype(np.float32)
+
+    def state(self) -> dict[str, torch.Tensor]:
+        return {
+            "mean": torch.as_tensor(self.mean),
+            "var": torch.as_tensor(self.var),
+            "count": torch.tensor(self.count, dtype=torch.float64),
+        }
+
+    @classmethod
+    def from_state(cls, state: dict[str, torch.Tensor]) -> RunningMeanStd:
+        return cls(state["mean"].numpy().copy(), state["var"].numpy().copy(), float(state["count"]))
+
+
+def save_checkpoint(path: Path, state: dict[str, Any], meta: dict[str, Any]) -> None:
+    """Write ``path`` (.pt, tensors and plain values) and ``path.with_suffix('.json')``."""
+    meta = {"schema": CHECKPOINT_SCHEMA, "versions": versions(), **meta}
+    with atomic_path(path) as tmp:
+        torch.save(state, tmp)
+    with atomic_path(path.with_suffix(".json")) as tmp:
+        tmp.write_text(json.dumps(meta, indent=2) + "\n")
+
+
+def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    path = Path(path)
+    meta_path = path.with_suffix(".json")
+    if not path.is_file() or not meta_path.is_file():
+        raise CheckpointError(
+            f"no checkpoint at {path} (needs {path.name} and {meta_path.name}); "
+            "train first or pass the right run directory"
+        )
+    try:
+        meta = json.loads(meta_path.read_text())
+    except json.JSONDecodeError as exc:
+        raise CheckpointError(f"{meta_path}: corrupt checkpoint metadata ({exc})") from exc
+    if meta.get("schema") != CHECKPOINT_SCHEMA:
+        raise CheckpointError(
+            f"{meta_path}: schema {meta.get('schema')!r} is not {CHECKPOINT_SCHEMA!r}"
+        )
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises many types for corrupt files
+        raise CheckpointError(f"{path}: cannot read the checkpoint ({exc})") from exc
+    return state, meta
+
+
+def check_compatible(meta: dict[str, Any], env: KartEnv, source: str) -> None:
+    """Raise a clear error if the checkpoint was trained on a different env spec."""
+    spec = env_spec(env)
+    saved = meta.get("env_spec", {})
+    if meta.get("env_spec_hash") == spec_hash(spec):
+        return
+    diffs = []
+    if saved.get("obs_dim") != spec["obs_dim"]:
+        diffs.append(f"observation size {saved.get('obs_dim')} vs {spec['obs_dim']}")
+    for key in ("env", "track", "track_sha256", "action_mode", "action_space",
+                "observation_layout", "env_config"):  # fmt: skip
+        if saved.get(key) != spec[key]:
+            diffs.append(
+                "track geometry differs"
+                if key == "track_sha256"
+                else f"{key}: {saved.get(key)!r} vs {spec[key]!r}"
+            )
+    raise CheckpointError(
+        f"{source} was trained for another env ({'; '.join(diffs) or 'env spec differs'}); "
+        "evaluate it on the env it was trained on"
+    )

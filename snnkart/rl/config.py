@@ -1,0 +1,190 @@
+"""Training configuration: one frozen, validated record, from defaults, a TOML file and the CLI.
+
+The resolved config is written into every run directory (``config.toml``) and is what
+``--resume``, ``eval`` and ``replay`` read back. Unknown keys are errors that name the key.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any, Literal
+
+import tomli_w
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from snnkart.envs import resolve_env_name
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+CONFIG_SCHEMA = "snnkart/train-config/v1"
+
+
+class ConfigError(ValueError):
+    """A training config is invalid; the message names the key and the fix."""
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class PPOConfig(_Section):
+    """PPO hyperparameters (CleanRL / Stable-Baselines3 names)."""
+
+    num_envs: int = Field(8, ge=1, description="parallel envs (gymnasium SyncVectorEnv)")
+    num_steps: int = Field(256, ge=1, description="rollout steps per env per iteration")
+    learning_rate: float = Field(3e-4, gt=0.0)
+    anneal_lr: bool = True
+    gamma: float = Field(0.99, gt=0.0, le=1.0)
+    gae_lambda: float = Field(0.95, ge=0.0, le=1.0)
+    update_epochs: int = Field(10, ge=1)
+    num_minibatches: int = Field(8, ge=1)
+    clip_coef: float = Field(0.2, gt=0.0)
+    clip_vloss: bool = False
+    ent_coef: float = Field(0.01, ge=0.0)
+    vf_coef: float = Field(0.5, ge=0.0)
+    max_grad_norm: float = Field(0.5, gt=0.0)
+    target_kl: float | None = Field(None, gt=0.0, description="stop the epochs early above this")
+    norm_adv: bool = True
+    norm_obs: bool = Field(True, description="running mean/std observation normalisation")
+    clip_obs: float = Field(10.0, gt=0.0)
+    init_log_std: float = Field(-0.5, description="continuous actions: initial log std")
+
+
+class ANNConfig(_Section):
+    hidden: tuple[int, ...] = (128, 128)
+
+
+class SNNConfig(_Section):
+    """Spiking actor: encoding, two LIF layers, linear readout of mean spike counts."""
+
+    num_steps: int = Field(8, ge=1, description="T: SNN time steps per env step")
+    hidden: tuple[int, int] = (128, 128)
+    beta: float = Field(0.9, ge=0.0, lt=1.0, description="membrane decay per SNN step")
+    threshold: float = Field(1.0, gt=0.0)
+    learn_beta: bool = False
+    learn_threshold: bool = False
+    surrogate_slope: float = Field(25.0, gt=0.0, description="fast-sigmoid slope k")
+    encoding: Literal["current", "rate"] = "current"
+    rate_reg: float = Field(0.0, ge=0.0, description="penalty weight on the mean firing rate")
+    init_gain: float = Field(
+        2.0, gt=0.0, description="scale of the spiking layers' initial weights"
+    )
+    fused: bool = Field(True, description="use the fused LIF kernel in training (tested equal)")
+
+
+class RunConfig(_Section):
+    checkpoint_every: int = Field(10, ge=1, description="iterations between checkpoints")
+    trajectories: bool = Field(True, description="record kart positions for replay")
+    torch_threads: int = Field(1, ge=1)
+    tensorboard: bool = True
+
+
+class TrainConfig(BaseModel):
+    """Everything that defines a training run."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    schema_: str = Field(CONFIG_SCHEMA, alias="schema")
+    env: str = "steer"
+    track: str = "small_S"
+    action_mode: Literal["discrete", "continuous"] = "discrete"
+    policy: Literal["ann", "snn"] = "snn"
+    total_steps: int = Field(300_000, ge=1)
+    seed: int = 1
+    env_config: dict[str, Any] = Field(default_factory=dict)
+    ppo: PPOConfig = PPOConfig()
+    ann: ANNConfig = ANNConfig()
+    snn: SNNConfig = SNNConfig()
+    run: RunConfig = RunConfig()
+
+    @model_validator(mode="after")
+    def _check(self) -> TrainConfig:
+        object.__setattr__(self, "env", resolve_env_name(self.env))
+        batch = self.ppo.num_envs * self.ppo.num_steps
+        if batch < self.ppo.num_minibatches:
+            raise ValueError(
+                f"ppo.num_envs * ppo.num_steps = {batch} is smaller than "
+                f"ppo.num_minibatches = {self.ppo.num_minibatches}"
+            )
+        return self
+
+    @property
+    def batch_size(self) -> int:
+        return self.ppo.num_envs * self.ppo.num_steps
+
+    def to_toml(self) -> str:
+        data = self.model_dump(by_alias=True, exclude_none=True)
+        return tomli_w.dumps(_lists(data))
+
+
+def _lists(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _lists(v) for k, v in obj.items()}
+    if isinstance(obj, tuple):
+        return [_lists(v) for v in obj]
+    return obj
+
+
+def _set_dotted(data: dict[str, Any], key: str, value: Any) -> None:
+    parts = key.split(".")
+    node = data
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+        if not isinstance(node, dict):
+            raise ConfigError(f"--set {key}: {p!r} is not a section")
+    node[parts[-1]] = value
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parse ``key=value`` with a TOML value (``ppo.learning_rate=3e-4``, ``snn.hidden=[64,64]``)."""
+    if "=" not in text:
+        raise ConfigError(f"--set {text!r}: expected KEY=VALUE, e.g. ppo.learning_rate=3e-4")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw  # bare words are strings: policy=snn
+    return key, value
+
+
+def load_config(
+    path: str | Path | None = None,
+    overrides: dict[str, Any] | None = None,
+    sets: list[str] | None = None,
+) -> TrainConfig:
+    """Defaults <- TOML file <- ``overrides`` (CLI flags) <- ``sets`` (``--set key=value``)."""
+    data: dict[str, Any] = {}
+    if path is not None:
+        p = Path(path)
+        if not p.is_file():
+            raise ConfigError(f"config file {p} does not exist")
+        try:
+            data = tomllib.loads(p.read_text("utf-8"))
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{p}: not valid TOML: {exc}") from exc
+    for key, value in (overrides or {}).items():
+        if value is not None:
+            _set_dotted(data, key, value)
+    for text in sets or []:
+        _set_dotted(data, *parse_override(text))
+    return validate_config(data, source=str(path) if path else "command line")
+
+
+def validate_config(data: dict[str, Any], source: str = "config") -> TrainConfig:
+    try:
+        return TrainConfig.model_validate(data)
+    except ValidationError as exc:
+        lines = []
+        for err in exc.errors():
+            loc = ".".join(str(x) for x in err["loc"])
+            if err["type"] == "extra_forbidden":
+                lines.append(f"unknown key {loc!r} (misspelled?)")
+            else:
+                lines.append(f"{loc}: {err['msg']}")
+        raise ConfigError(f"{source}: invalid training config: " + "; ".join(lines)) from None
+    except ValueError as exc:
+        raise ConfigError(f"{source}: {exc}") from None

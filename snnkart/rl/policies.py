@@ -1,0 +1,267 @@
+"""Actor-critic policies for PPO: an MLP (ANN) and a spiking actor (SNN, snntorch).
+
+Both share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
+The critic is always an MLP: it never leaves the host. The spiking actor is built for
+deployment on Lava (see ``shared/reference/snn-nir-lava.md``): reset-to-zero LIF neurons, one
+beta and one threshold per layer, membranes reset at every env step, no recurrence.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import snntorch as snn
+import torch
+from snntorch import surrogate
+from torch import nn
+from torch.distributions import Categorical, Normal
+
+from snnkart.rl.config import ANNConfig, SNNConfig
+from snnkart.rl.lif import fused_lif_layer
+
+BETA_MAX = 0.999
+"""Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
+THRESHOLD_MIN = 1e-3
+
+
+def layer_init(layer: nn.Linear, std: float = math.sqrt(2.0), bias: float = 0.0) -> nn.Linear:
+    """Orthogonal weights with gain ``std`` and constant bias (CleanRL's ``layer_init``)."""
+    nn.init.orthogonal_(layer.weight, std)
+    nn.init.constant_(layer.bias, bias)
+    return layer
+
+
+def mlp(sizes: list[int], out_std: float) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for a, b in zip(sizes[:-2], sizes[1:-1], strict=True):
+        layers += [layer_init(nn.Linear(a, b)), nn.Tanh()]
+    layers.append(layer_init(nn.Linear(sizes[-2], sizes[-1]), std=out_std))
+    return nn.Sequential(*layers)
+
+
+@dataclass
+class PolicyOutput:
+    action: torch.Tensor
+    log_prob: torch.Tensor
+    entropy: torch.Tensor
+    value: torch.Tensor
+    input_spikes: torch.Tensor | None  # rate encoding: the sampled input trains [B, T, n_in]
+    rates: torch.Tensor | None  # SNN: mean firing rate per layer [n_layers]
+
+
+class ActorCritic(nn.Module):
+    """Common part: action distribution, critic, observation scaling for the actor."""
+
+    kind = "base"
+
+    def __init__(
+        self, obs_dim: int, action_dim: int, discrete: bool, init_log_std: float = -0.5
+    ) -> None:
+        super().__init__()
+        self.obs_dim = obs_dim
+        self.action_dim = action_dim
+        self.discrete = discrete
+        if not discrete:
+            self.log_std = nn.Parameter(torch.full((action_dim,), float(init_log_std)))
+
+    def actor_output(
+        self, obs: torch.Tensor, raw_obs: torch.Tensor, input_spikes: torch.Tensor | None
+    ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
+        """Logits (discrete) or action means (continuous), plus SNN extras."""
+        raise NotImplementedError
+
+    def value(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.critic(obs).squeeze(-1)
+
+    def distribution(self, out: torch.Tensor) -> Categorical | Normal:
+        if self.discrete:
+            return Categorical(logits=out)
+        return Normal(out, self.log_std.exp().expand_as(out))
+
+    def forward(
+        self,
+        obs: torch.Tensor,
+        raw_obs: torch.Tensor,
+        action: torch.Tensor | None = None,
+        input_spikes: torch.Tensor | None = None,
+    ) -> PolicyOutput:
+        """``obs`` is normalised (critic, ANN actor); ``raw_obs`` is the env's observation."""
+        out, spikes, rates = self.actor_output(obs, raw_obs, input_spikes)
+        dist = self.distribution(out)
+        if action is None:
+            action = dist.sample()
+        log_prob = dist.log_prob(action)
+        entropy = dist.entropy()
+        if not self.discrete:
+            log_prob, entropy = log_prob.sum(-1), entropy.sum(-1)
+        return PolicyOutput(action, log_prob, entropy, self.value(obs), spikes, rates)
+
+    @torch.no_grad()
+    def act_deterministic(self, obs: torch.Tensor, raw_obs: torch.Tensor) -> torch.Tensor:
+        out, _, _ = self.actor_output(obs, raw_obs, None)
+        return out.argmax(-1) if self.discrete else out
+
+    def clamp_parameters(self) -> None:
+        """Keep learnable neuron parameters in their valid range (after an optimiser step)."""
+
+
+class ANNPolicy(ActorCritic):
+    """MLP actor and critic (the original used 128-128 ReLU; here tanh as in CleanRL)."""
+
+    kind = "ann"
+
+    def __init__(
+        self, obs_dim: int, action_dim: int, discrete: bool, cfg: ANNConfig, init_log_std: float
+    ) -> None:
+        super().__init__(obs_dim, action_dim, discrete, init_log_std)
+        sizes = [obs_dim, *cfg.hidden]
+        self.actor = mlp([*sizes, action_dim], out_std=0.01)
+        self.critic = mlp([*sizes, 1], out_std=1.0)
+
+    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
+        return self.actor(obs), None, None
+
+
+class SpikingActor(nn.Module):
+    """Encoding -> Linear -> LIF -> Linear -> LIF -> mean spike count -> Linear readout.
+
+    Each env step is one window of ``T`` SNN steps, starting from zero membranes:
+
+        I1[t] = W1 x[t] + b1            (rate: x[t] ~ Bernoulli(obs01); current: x[t] = obs01)
+        U1[t] = beta1 U1[t-1] (1 - S1[t-1]) + I1[t],   S1[t] = H(U1[t] - theta1)
+        U2[t] = beta2 U2[t-1] (1 - S2[t-1]) + W2 S1[t] + b2,  S2[t] = H(U2[t] - theta2)
+        out   = W3 mean_t(S2[t]) + b3
+
+    ``obs01`` is the observation scaled to [0, 1] by the env's (true) bounds. The reset is
+    reset-to-zero (snntorch ``reset_mechanism="zero"``), the surrogate gradient the fast
+    sigmoid ``1 / (1 + k|U - theta|)^2``. Inputs ``[B, n_in]``, output ``[B, n_out]``.
+    """
+
+    def __init__(self, n_in: int, n_out: int, cfg: SNNConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.T = cfg.num_steps
+        h1, h2 = cfg.hidden
+        self.fc1 = nn.Linear(n_in, h1)
+        self.fc2 = nn.Linear(h1, h2)
+        self.readout = layer_init(nn.Linear(h2, n_out), std=0.01)
+        with torch.no_grad():
+            for fc in (self.fc1, self.fc2):
+                fc.weight.mul_(cfg.init_gain)
+        grad = surrogate.fast_sigmoid(slope=cfg.surrogate_slope)
+        self.lif1 = snn.Leaky(
+            beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
+            spike_grad=grad, reset_mechanism="zero", reset_delay=False,
+            learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
+        )  # fmt: skip
+        self.lif2 = snn.Leaky(
+            beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
+            spike_grad=grad, reset_mechanism="zero", reset_delay=False,
+            learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
+        )  # fmt: skip
+
+    def encode(self, obs01: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Rate encoding: Bernoulli spike trains ``[B, T, n_in]`` with p = obs01."""
+        p = obs01.clamp(0.0, 1.0).unsqueeze(1).expand(-1, self.T, -1)
+        return torch.bernoulli(p, generator=generator)
+
+    def forward(
+        self, obs01: torch.Tensor, input_spikes: torch.Tensor | None = None, fused: bool = False
+    ) -> tuple[torch.Tensor, torch.Tensor, list[torch.Tensor]]:
+        """Returns (readout output, mean firing rate per layer ``[2]``, spike records)."""
+        B = obs01.shape[0]
+        if self.cfg.encoding == "rate":
+            if input_spikes is None:
+                input_spikes = self.encode(obs01)
+            cur1 = self.fc1(input_spikes).transpose(0, 1)  # [T, B, h1]
+        else:
+            cur1 = self.fc1(obs01).unsqueeze(0).expand(self.T, -1, -1)
+        beta1, thr1 = self.lif1.beta, self.lif1.threshold
+        beta2, thr2 = self.lif2.beta, self.lif2.threshold
+        if fused:
+            spk1 = fused_lif_layer(cur1, beta1, thr1, self.cfg.surrogate_slope)
+            spk2 = fused_lif_layer(self.fc2(spk1), beta2, thr2, self.cfg.surrogate_slope)
+        else:
+            mem1 = torch.zeros(B, cur1.shape[-1])
+            mem2 = torch.zeros(B, self.fc2.out_features)
+            s1, s2 = [], []
+            for t in range(self.T):
+                a, mem1 = self.lif1(cur1[t], mem1)
+                b, mem2 = self.lif2(self.fc2(a), mem2)
+                s1.append(a)
+                s2.append(b)
+            spk1, spk2 = torch.stack(s1), torch.stack(s2)
+        out = self.readout(spk2.mean(0))
+        rates = torch.stack([spk1.mean(), spk2.mean()])
+        return out, rates, [spk1, spk2]
+
+
+class SNNPolicy(ActorCritic):
+    """Spiking actor (:class:`SpikingActor`) with an MLP critic on normalised observations."""
+
+    kind = "snn"
+
+    def __init__(
+        self,
+        obs_dim: int,
+        action_dim: int,
+        discrete: bool,
+        cfg: SNNConfig,
+        critic_hidden: tuple[int, ...],
+        obs_low: np.ndarray,
+        obs_high: np.ndarray,
+        init_log_std: float,
+    ) -> None:
+        super().__init__(obs_dim, action_dim, discrete, init_log_std)
+        self.cfg = cfg
+        self.snn = SpikingActor(obs_dim, action_dim, cfg)
+        self.critic = mlp([obs_dim, *critic_hidden, 1], out_std=1.0)
+        self.register_buffer("obs_low", torch.as_tensor(obs_low, dtype=torch.float32))
+        self.register_buffer("obs_span", torch.as_tensor(obs_high - obs_low, dtype=torch.float32))
+
+    def scale01(self, raw_obs: torch.Tensor) -> torch.Tensor:
+        return (raw_obs - self.obs_low) / self.obs_span
+
+    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
+        obs01 = self.scale01(raw_obs)
+        if self.cfg.encoding == "rate" and input_spikes is None:
+            input_spikes = self.snn.encode(obs01)
+        out, rates, _ = self.snn(obs01, input_spikes, fused=self.cfg.fused and self.training)
+        return out, input_spikes, rates
+
+    @torch.no_grad()
+    def act_deterministic(self, obs: torch.Tensor, raw_obs: torch.Tensor) -> torch.Tensor:
+        was = self.training
+        self.eval()
+        try:
+            return super().act_deterministic(obs, raw_obs)
+        finally:
+            self.train(was)
+
+    def clamp_parameters(self) -> None:
+        with torch.no_grad():
+            for lif in (self.snn.lif1, self.snn.lif2):
+                lif.beta.clamp_(0.0, BETA_MAX)
+                lif.threshold.clamp_(min=THRESHOLD_MIN)
+
+
+def build_policy(
+    kind: str,
+    obs_dim: int,
+    action_dim: int,
+    discrete: bool,
+    ann: ANNConfig,
+    snn_cfg: SNNConfig,
+    obs_low: np.ndarray,
+    obs_high: np.ndarray,
+    init_log_std: float = -0.5,
+) -> ActorCritic:
+    if kind == "ann":
+        return ANNPolicy(obs_dim, action_dim, discrete, ann, init_log_std)
+    if kind == "snn":
+        return SNNPolicy(
+            obs_dim, action_dim, discrete, snn_cfg, ann.hidden, obs_low, obs_high, init_log_std
+        )
+    raise ValueError(f"unknown policy kind {kind!r}; choose ann or snn")

@@ -1,0 +1,525 @@
+"""PPO for ANN and SNN policies: one loop, the policy is a parameter.
+
+Laid out like CleanRL's ``ppo.py`` (one readable iteration: LR anneal, rollout into
+preallocated ``[steps, envs, ...]`` tensors, GAE under ``no_grad``, minibatch epochs) and split
+like Stable-Baselines3 (:func:`compute_gae` and :meth:`Trainer.update` are separate and tested).
+
+Details that matter:
+
+* gymnasium 1.x vector envs run in ``SAME_STEP`` autoreset mode, so every stored transition
+  is a real one (no training on a reset step); the terminal observation comes from
+  ``info["final_obs"]``.
+* Time-limit truncation is bootstrapped: ``r_t += gamma * V(final_obs)``, then the episode is
+  cut for GAE. Termination (finish, crash, standing still) is not bootstrapped.
+* Per-minibatch advantage normalisation, clipped surrogate, entropy bonus, value loss,
+  gradient-norm clipping, linear LR annealing, optional target-KL early stop, orthogonal init,
+  running observation normalisation stored with the checkpoint.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+from torch import nn
+
+from snnkart.envs import ENV_IDS
+from snnkart.envs.base import KartEnv
+from snnkart.io import atomic_path
+from snnkart.rl.checkpoint import (
+    RunningMeanStd,
+    check_compatible,
+    env_spec,
+    load_checkpoint,
+    save_checkpoint,
+    spec_hash,
+)
+from snnkart.rl.config import TrainConfig, validate_config
+from snnkart.rl.policies import ActorCritic, build_policy
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+class RunError(RuntimeError):
+    """A run directory cannot be used as asked (exists already, nothing to resume, ...)."""
+
+
+def compute_gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    episode_end: torch.Tensor,
+    last_value: torch.Tensor,
+    gamma: float,
+    gae_lambda: float,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Generalised advantage estimation over ``[steps, envs]`` tensors.
+
+    ``episode_end[t]`` is 1 where the episode ended *after* step ``t`` (terminated or
+    truncated; truncations already carry their bootstrap in ``rewards[t]``). ``last_value`` is
+    V of the observation after the last step. Returns (advantages, returns).
+    """
+    steps = rewards.shape[0]
+    advantages = torch.zeros_like(rewards)
+    last_gae = torch.zeros_like(last_value)
+    for t in reversed(range(steps)):
+        next_value = last_value if t == steps - 1 else values[t + 1]
+        nonterminal = 1.0 - episode_end[t]
+        delta = rewards[t] + gamma * next_value * nonterminal - values[t]
+        last_gae = delta + gamma * gae_lambda * nonterminal * last_gae
+        advantages[t] = last_gae
+    return advantages, advantages + values
+
+
+def make_env(cfg: TrainConfig, render_mode: str | None = None) -> gym.Env:
+    return gym.make(
+        ENV_IDS[cfg.env],
+        track=cfg.track,
+        action_mode=cfg.action_mode,
+        config=cfg.env_config or None,
+        render_mode=render_mode,
+    )
+
+
+def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
+    space = env.action_space
+    discrete = isinstance(space, gym.spaces.Discrete)
+    action_dim = int(space.n) if discrete else int(space.shape[0])
+    obs_space = env.observation_space
+    return build_policy(
+        cfg.policy,
+        int(obs_space.shape[0]),
+        action_dim,
+        discrete,
+        cfg.ann,
+        cfg.snn,
+        obs_space.low.astype(np.float64),
+        obs_space.high.astype(np.float64),
+        cfg.ppo.init_log_std,
+    )
+
+
+@dataclass
+class Progress:
+    """Counters that survive a resume."""
+
+    global_step: int = 0
+    iteration: int = 0
+    episodes: int = 0
+    finishes: int = 0
+    first_finish_step: int = -1
+
+    def state(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class IterationStats:
+    returns: list[float] = field(default_factory=list)
+    lengths: list[int] = field(default_factory=list)
+    finishes: int = 0
+    crashes: int = 0
+    lap_times: list[float] = field(default_factory=list)
+    rates: list[np.ndarray] = field(default_factory=list)
+
+
+class Trainer:
+    """Owns a run directory: config, checkpoints, metrics, trajectories."""
+
+    def __init__(self, cfg: TrainConfig, run_dir: Path, resume: bool = False) -> None:
+        self.run_dir = Path(run_dir)
+        config_path = self.run_dir / "config.toml"
+        if resume:
+            if not config_path.is_file():
+                raise RunError(f"nothing to resume in {self.run_dir}: no config.toml there")
+            saved = validate_config(tomllib.loads(config_path.read_text()), str(config_path))
+            if cfg.total_steps != saved.total_steps:
+                saved = saved.model_copy(update={"total_steps": cfg.total_steps})
+            cfg = saved
+        elif config_path.exists():
+            raise RunError(
+                f"{self.run_dir} already holds a run; pass --resume to continue it "
+                "or choose another --out"
+            )
+        self.cfg = cfg
+        torch.set_num_threads(cfg.run.torch_threads)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        with atomic_path(config_path) as tmp:
+            tmp.write_text(cfg.to_toml())
+
+        p = cfg.ppo
+        self.envs = gym.vector.SyncVectorEnv(
+            [lambda: make_env(cfg)] * p.num_envs,
+            autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
+        )
+        self.env0: KartEnv = self.envs.envs[0].unwrapped  # type: ignore[assignment]
+        self.spec = env_spec(self.env0)
+        torch.manual_seed(cfg.seed)
+        self.policy = policy_for(cfg, self.env0)
+        self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=p.learning_rate, eps=1e-5)
+        self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
+        self.progress = Progress()
+        self.rng = np.random.default_rng(cfg.seed)
+        if resume and (self.run_dir / "checkpoint.pt").is_file():
+            self._restore(self.run_dir / "checkpoint.pt")
+        self.num_iterations = math.ceil(cfg.total_steps / cfg.batch_size)
+        self.metrics_path = self.run_dir / "metrics.jsonl"
+        self.writer: Any = None
+
+    # -- checkpoints -------------------------------------------------------------------------
+
+    def _restore(self, path: Path) -> None:
+        state, meta = load_checkpoint(path)
+        check_compatible(meta, self.env0, str(path))
+        self.policy.load_state_dict(state["policy"])
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.obs_rms = RunningMeanStd.from_state(state["obs_rms"])
+        self.progress = Progress(**{k: int(v) for k, v in state["progress"].items()})
+        torch.set_rng_state(state["torch_rng"])
+        self.rng = np.random.default_rng(int(state["numpy_seed"]))
+
+    def save(self) -> Path:
+        """Write ``checkpoint.pt`` (latest) and a copy under ``checkpoints/``."""
+        state = {
+            "policy": self.policy.state_dict(),
+            "optimizer": self.optimizer.state_dict(),
+            "obs_rms": self.obs_rms.state(),
+            "progress": self.progress.state(),
+            "torch_rng": torch.get_rng_state(),
+            "numpy_seed": int(self.rng.integers(2**62)),
+        }
+        meta = {
+            "policy": self.cfg.policy,
+            "env_spec": self.spec,
+            "env_spec_hash": spec_hash(self.spec),
+            "config": self.cfg.model_dump(mode="json", by_alias=True),
+            **self.progress.state(),
+        }
+        latest = self.run_dir / "checkpoint.pt"
+        save_checkpoint(latest, state, meta)
+        history = self.run_dir / "checkpoints" / f"iter_{self.progress.iteration:06d}.pt"
+        save_checkpoint(history, state, meta)
+        return latest
+
+    # -- the loop ------------------------------------------------------------------------------
+
+    def train(self, on_iteration: Callable[[dict[str, Any]], None] | None = None) -> Progress:
+        """Run until ``total_steps``; Ctrl-C (SIGINT) saves a checkpoint before returning."""
+        cfg, p = self.cfg, self.cfg.ppo
+        S, E = p.num_steps, p.num_envs
+        obs_dim = self.spec["obs_dim"]
+        discrete = self.policy.discrete
+        act_shape: tuple[int, ...] = () if discrete else (self.policy.action_dim,)
+        T = cfg.snn.num_steps
+        rate = cfg.policy == "snn" and cfg.snn.encoding == "rate"
+
+        obs_buf = torch.zeros(S, E, obs_dim)
+        raw_buf = torch.zeros(S, E, obs_dim)
+        act_buf = torch.zeros((S, E, *act_shape), dtype=torch.long if discrete else torch.float32)
+        logp_buf = torch.zeros(S, E)
+        rew_buf = torch.zeros(S, E)
+        end_buf = torch.zeros(S, E)
+        val_buf = torch.zeros(S, E)
+        spk_buf = torch.zeros(S, E, T, obs_dim, dtype=torch.bool) if rate else None
+
+        if cfg.run.tensorboard and self.writer is None:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self.writer = SummaryWriter(str(self.run_dir / "tb"))
+
+        next_raw, _ = self.envs.reset(seed=cfg.seed + 7919 * self.progress.iteration)
+        ep_return = np.zeros(E)
+        ep_length = np.zeros(E, dtype=np.int64)
+        interrupted = False
+
+        def _on_sigint(signum: int, frame: Any) -> None:
+            nonlocal interrupted
+            interrupted = True
+
+        previous = signal.signal(signal.SIGINT, _on_sigint)
+        self.policy.train()
+        try:
+            while self.progress.iteration < self.num_iterations and not interrupted:
+                it_start = time.perf_counter()
+                self.progress.iteration += 1
+                if p.anneal_lr:
+                    frac = 1.0 - (self.progress.iteration - 1) / self.num_iterations
+                    self.optimizer.param_groups[0]["lr"] = frac * p.learning_rate
+                stats = IterationStats()
+                positions = np.zeros((S, E, 2), dtype=np.float32)
+                ends = np.zeros((S, E), dtype=bool)
+
+                # -- rollout ---------------------------------------------------------------
+                for step in range(S):
+                    self.progress.global_step += E
+                    if p.norm_obs:
+                        self.obs_rms.update(next_raw)
+                        norm = self.obs_rms.normalize(next_raw, p.clip_obs)
+                    else:
+                        norm = next_raw.astype(np.float32)
+                    obs_t = torch.from_numpy(norm)
+                    raw_t = torch.from_numpy(np.asarray(next_raw, dtype=np.float32))
+                    with torch.no_grad():
+                        out = self.policy(obs_t, raw_t)
+                    obs_buf[step], raw_buf[step] = obs_t, raw_t
+                    act_buf[step], logp_buf[step], val_buf[step] = (
+                        out.action,
+                        out.log_prob,
+                        out.value,
+                    )
+                    if spk_buf is not None and out.input_spikes is not None:
+                        spk_buf[step] = out.input_spikes.bool()
+                    if out.rates is not None:
+                        stats.rates.append(out.rates.numpy())
+                    action = out.action.numpy()
+                    if not discrete:
+                        action = np.clip(action, -1.0, 1.0)
+                    next_raw, reward, terminated, truncated, info = self.envs.step(action)
+                    reward = reward.astype(np.float64)
+                    done = terminated | truncated
+                    positions[step] = np.asarray(
+                        [self._position(info, i) for i in range(E)], dtype=np.float32
+                    )
+                    ends[step] = done
+                    ep_return += reward
+                    ep_length += 1
+                    if truncated.any():
+                        reward = reward + p.gamma * self._final_values(info, truncated)
+                    rew_buf[step] = torch.from_numpy(reward.astype(np.float32))
+                    end_buf[step] = torch.from_numpy(done.astype(np.float32))
+                    for i in np.flatnonzero(done):
+                        self._episode_end(info, i, ep_return[i], ep_length[i], stats)
+                        ep_return[i], ep_length[i] = 0.0, 0
+                    if interrupted:
+                        break
+                if interrupted:
+                    self.progress.iteration -= 1
+                    self.progress.global_step -= (step + 1) * E
+                    break
+                rollout_time = time.perf_counter() - it_start
+
+                # -- GAE -------------------------------------------------------------------
+                with torch.no_grad():
+                    last_norm = (
+                        self.obs_rms.normalize(next_raw, p.clip_obs)
+                        if p.norm_obs
+                        else next_raw.astype(np.float32)
+                    )
+                    last_value = self.policy.value(torch.from_numpy(last_norm))
+                    advantages, returns = compute_gae(
+                        rew_buf, val_buf, end_buf, last_value, p.gamma, p.gae_lambda
+                    )
+
+                # -- update ----------------------------------------------------------------
+                update_start = time.perf_counter()
+                losses = self.update(
+                    obs_buf.reshape(S * E, obs_dim),
+                    raw_buf.reshape(S * E, obs_dim),
+                    act_buf.reshape((S * E, *act_shape)),
+                    logp_buf.reshape(-1),
+                    advantages.reshape(-1),
+                    returns.reshape(-1),
+                    val_buf.reshape(-1),
+                    spk_buf.reshape(S * E, T, obs_dim).float() if spk_buf is not None else None,
+                )
+                update_time = time.perf_counter() - update_start
+
+                record = self._log(stats, losses, rollout_time, update_time)
+                if self.cfg.run.trajectories:
+                    self._write_trajectories(positions, ends)
+                if (
+                    self.progress.iteration % cfg.run.checkpoint_every == 0
+                    or self.progress.iteration == self.num_iterations
+                ):
+                    self.save()
+                if on_iteration is not None:
+                    on_iteration(record)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+            if interrupted:
+                self.save()
+            if self.writer is not None:
+                self.writer.flush()
+        self.interrupted = interrupted
+        return self.progress
+
+    def update(
+        self,
+        b_obs: torch.Tensor,
+        b_raw: torch.Tensor,
+        b_actions: torch.Tensor,
+        b_logprobs: torch.Tensor,
+        b_advantages: torch.Tensor,
+        b_returns: torch.Tensor,
+        b_values: torch.Tensor,
+        b_spikes: torch.Tensor | None,
+    ) -> dict[str, float]:
+        """PPO epochs over shuffled minibatches; returns the last epoch's mean losses."""
+        p = self.cfg.ppo
+        batch = b_obs.shape[0]
+        mb_size = batch // p.num_minibatches
+        rate_reg = self.cfg.snn.rate_reg if self.cfg.policy == "snn" else 0.0
+        clipfracs: list[float] = []
+        first_ratio_dev = float("nan")
+        for _epoch in range(p.update_epochs):
+            order = self.rng.permutation(batch)
+            for start in range(0, mb_size * p.num_minibatches, mb_size):
+                mb = torch.from_numpy(order[start : start + mb_size])
+                out = self.policy(
+                    b_obs[mb],
+                    b_raw[mb],
+                    action=b_actions[mb],
+                    input_spikes=b_spikes[mb] if b_spikes is not None else None,
+                )
+                logratio = out.log_prob - b_logprobs[mb]
+                ratio = logratio.exp()
+                with torch.no_grad():
+                    approx_kl = ((ratio - 1) - logratio).mean().item()
+                    clipfracs.append(((ratio - 1.0).abs() > p.clip_coef).float().mean().item())
+                    if math.isnan(first_ratio_dev):
+                        first_ratio_dev = (ratio - 1.0).abs().max().item()
+                adv = b_advantages[mb]
+                if p.norm_adv:
+                    adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+                pg_loss = torch.max(
+                    -adv * ratio, -adv * ratio.clamp(1 - p.clip_coef, 1 + p.clip_coef)
+                ).mean()
+                if p.clip_vloss:
+                    v_clipped = b_values[mb] + (out.value - b_values[mb]).clamp(
+                        -p.clip_coef, p.clip_coef
+                    )
+                    v_loss = (
+                        0.5
+                        * torch.max(
+                            (out.value - b_returns[mb]) ** 2, (v_clipped - b_returns[mb]) ** 2
+                        ).mean()
+                    )
+                else:
+                    v_loss = 0.5 * ((out.value - b_returns[mb]) ** 2).mean()
+                entropy = out.entropy.mean()
+                loss = pg_loss - p.ent_coef * entropy + p.vf_coef * v_loss
+                if rate_reg > 0.0 and out.rates is not None:
+                    loss = loss + rate_reg * out.rates.sum()
+                self.optimizer.zero_grad()
+                loss.backward()
+                nn.utils.clip_grad_norm_(self.policy.parameters(), p.max_grad_norm)
+                self.optimizer.step()
+                self.policy.clamp_parameters()
+            if p.target_kl is not None and approx_kl > p.target_kl:
+                break
+        y_pred, y_true = b_values.numpy(), b_returns.numpy()
+        var_y = np.var(y_true)
+        explained_var = float("nan") if var_y == 0 else float(1 - np.var(y_true - y_pred) / var_y)
+        return {
+            "losses/policy_loss": pg_loss.item(),
+            "losses/value_loss": v_loss.item(),
+            "losses/entropy": entropy.item(),
+            "losses/approx_kl": approx_kl,
+            "losses/clipfrac": float(np.mean(clipfracs)),
+            "losses/explained_variance": explained_var,
+            "losses/first_minibatch_max_ratio_deviation": first_ratio_dev,
+        }
+
+    # -- helpers -------------------------------------------------------------------------------
+
+    def _final_values(self, info: dict[str, Any], truncated: np.ndarray) -> np.ndarray:
+        """V(final observation) for truncated envs, 0 elsewhere."""
+        values = np.zeros(truncated.shape[0])
+        idx = np.flatnonzero(truncated)
+        final = np.stack([info["final_obs"][i] for i in idx]).astype(np.float64)
+        norm = (
+            self.obs_rms.normalize(final, self.cfg.ppo.clip_obs)
+            if self.cfg.ppo.norm_obs
+            else final.astype(np.float32)
+        )
+        with torch.no_grad():
+            values[idx] = self.policy.value(torch.from_numpy(norm)).numpy()
+        return values
+
+    @staticmethod
+    def _position(info: dict[str, Any], i: int) -> tuple[float, float]:
+        if "final_info" in info and info.get("_final_info", np.zeros(0, bool))[i : i + 1].any():
+            return info["final_info"]["position"][i]
+        return info["position"][i]
+
+    def _episode_end(
+        self, info: dict[str, Any], i: int, ret: float, length: int, stats: IterationStats
+    ) -> None:
+        final = info["final_info"]
+        finished = bool(final["lap_finished"][i])
+        self.progress.episodes += 1
+        stats.returns.append(float(ret))
+        stats.lengths.append(int(length))
+        if finished:
+            stats.finishes += 1
+            stats.lap_times.append(float(final["elapsed_time"][i]))
+            self.progress.finishes += 1
+            if self.progress.first_finish_step < 0:
+                self.progress.first_finish_step = self.progress.global_step
+        if bool(final["crashed"][i]):
+            stats.crashes += 1
+
+    def _log(
+        self,
+        stats: IterationStats,
+        losses: dict[str, float],
+        rollout_time: float,
+        update_time: float,
+    ) -> dict[str, Any]:
+        steps = self.cfg.batch_size
+        record: dict[str, Any] = {
+            "iteration": self.progress.iteration,
+            "global_step": self.progress.global_step,
+            "charts/episodic_return": float(np.mean(stats.returns)) if stats.returns else None,
+            "charts/episodic_length": float(np.mean(stats.lengths)) if stats.lengths else None,
+            "charts/episodes": len(stats.returns),
+            "charts/finishes": stats.finishes,
+            "charts/crashes": stats.crashes,
+            "charts/lap_time": float(np.mean(stats.lap_times)) if stats.lap_times else None,
+            "charts/cumulative_finishes": self.progress.finishes,
+            "charts/first_finish_step": self.progress.first_finish_step,
+            "charts/learning_rate": self.optimizer.param_groups[0]["lr"],
+            "charts/SPS": steps / (rollout_time + update_time),
+            "charts/rollout_SPS": steps / rollout_time,
+            "charts/update_seconds": update_time,
+            **losses,
+        }
+        if stats.rates:
+            rates = np.mean(stats.rates, axis=0)
+            for k, r in enumerate(rates):
+                record[f"snn/firing_rate_layer{k + 1}"] = float(r)
+        with open(self.metrics_path, "a") as f:
+            f.write(json.dumps(record) + "\n")
+        if self.writer is not None:
+            for key, value in record.items():
+                if "/" in key and value is not None:
+                    self.writer.add_scalar(key, value, self.progress.global_step)
+        return record
+
+    def _write_trajectories(self, positions: np.ndarray, ends: np.ndarray) -> None:
+        path = self.run_dir / "trajectories" / f"iter_{self.progress.iteration:06d}.npz"
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(
+                f,
+                positions=positions,
+                episode_end=ends,
+                global_step=np.int64(self.progress.global_step),
+            )
+
+    def close(self) -> None:
+        self.envs.close()
+        if self.writer is not None:
+            self.writer.close()
+            self.writer = None
