@@ -93,21 +93,94 @@ def demo(
 
 
 @app.command()
-def train() -> None:
-    """Train an ANN or SNN policy with PPO (not implemented yet)."""
-    _not_yet("train", "PPO training arrives with the training issue")
+def train(
+    env: Annotated[str | None, typer.Option("--env", "-e", help="grid, gazebo or steer")] = None,
+    track: Annotated[
+        str | None, typer.Option("--track", "-t", help="big_S, small_S or a file")
+    ] = None,
+    policy: Annotated[str | None, typer.Option(help="ann or snn")] = None,
+    steps: Annotated[int | None, typer.Option(help="total env steps")] = None,
+    seed: Annotated[int | None, typer.Option(help="random seed")] = None,
+    action_mode: Annotated[str | None, typer.Option(help="discrete or continuous")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="run directory")] = None,
+    config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config file")] = None,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set", "-s", help="any hyperparameter: KEY=VALUE, e.g. ppo.learning_rate=1e-3"
+        ),
+    ] = None,
+    resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
+) -> None:
+    """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
+    from snnkart.envs.tracks import TrackError
+    from snnkart.rl.checkpoint import CheckpointError
+    from snnkart.rl.config import ConfigError, load_config
+    from snnkart.train_cli import run_training
+
+    overrides = {
+        "env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
+        "action_mode": action_mode,
+    }  # fmt: skip
+    try:
+        cfg = load_config(config, overrides, set_)
+        if not resume:
+            from snnkart.envs.tracks import load_track
+
+            load_track(cfg.track)
+        run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
+        code = run_training(cfg, run_dir, resume=resume)
+    except (ConfigError, TrackError, CheckpointError, RuntimeError) as exc:
+        _fail(str(exc))
+    raise typer.Exit(code)
 
 
 @app.command(name="eval")
-def eval_() -> None:
-    """Evaluate a trained policy (not implemented yet)."""
-    _not_yet("eval", "evaluation arrives with the training issue")
+def eval_(
+    run_dir: Annotated[Path, typer.Argument(help="a training run directory")],
+    episodes: Annotated[int, typer.Option(help="number of seeded episodes")] = 20,
+    seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
+    checkpoint: Annotated[Path | None, typer.Option(help="default: the run's latest")] = None,
+    render: Annotated[bool, typer.Option(help="show the episodes in a window")] = False,
+    video: Annotated[Path | None, typer.Option(help="write the episodes to a GIF or MP4")] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="JSON results (default RUN_DIR/eval.json)")
+    ] = None,
+) -> None:
+    """Evaluate the deterministic policy with frozen normalisation; print and write JSON."""
+    from snnkart.rl.checkpoint import CheckpointError
+    from snnkart.rl.config import ConfigError
+    from snnkart.train_cli import run_eval
+
+    if episodes < 1:
+        _fail(f"--episodes must be >= 1, got {episodes}")
+    try:
+        run_eval(run_dir, episodes, seed, checkpoint, render, video, out)
+    except (ConfigError, CheckpointError, ValueError) as exc:
+        _fail(str(exc))
 
 
 @app.command()
-def replay() -> None:
-    """Replay the episodes recorded during training (not implemented yet)."""
-    _not_yet("replay", "replay arrives with the training issue")
+def replay(
+    run_dir: Annotated[Path, typer.Argument(help="a training run directory")],
+    mode: Annotated[
+        str, typer.Option(help="batch: iteration by iteration; all: everything at once")
+    ] = "batch",
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="GIF or MP4 instead of a window")
+    ] = None,
+    every: Annotated[int, typer.Option(help="show every n-th time step")] = 2,
+) -> None:
+    """Replay the episodes recorded during training, several karts at once."""
+    from snnkart.replay import ReplayError
+    from snnkart.rl.checkpoint import CheckpointError
+    from snnkart.rl.config import ConfigError
+    from snnkart.train_cli import run_replay
+
+    try:
+        run_replay(run_dir, mode, out, every)
+    except (ReplayError, ConfigError, CheckpointError, ValueError) as exc:
+        _fail(str(exc))
 
 
 @app.command()

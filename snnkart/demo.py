@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from snnkart.envs.constants import RENDER_FPS
-from snnkart.io import atomic_path
+from snnkart.video import video_writer
 
 
 def scripted_gif(
@@ -14,7 +14,6 @@ def scripted_gif(
 ) -> dict[str, Any]:
     """Drive one episode with :class:`~snnkart.drivers.ScriptedDriver` and save every
     ``every``-th frame as a GIF at real-time speed. Returns the episode summary."""
-    import imageio.v2 as imageio
     from rich.progress import Progress
 
     from snnkart.drivers import ScriptedDriver, drive_episode
@@ -37,6 +36,7 @@ def scripted_gif(
             frames.append(env.render())
     finally:
         env.close()
-    with atomic_path(out) as tmp:
-        imageio.mimsave(tmp, frames, format="GIF", duration=1000.0 * every / RENDER_FPS, loop=0)
+    with video_writer(out, fps=RENDER_FPS / every) as writer:
+        for frame in frames:
+            writer.append_data(frame)
     return result

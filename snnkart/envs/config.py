@@ -35,15 +35,19 @@ class RewardConfig(_Frozen):
     checkpoint: float = Field(1.0, description="bonus per checkpoint passed in order")
     finish: float = Field(10.0, description="bonus for crossing the finish line")
     time: float = Field(
-        0.001, ge=0.0, description="passive penalty per step (a full time limit costs less than a crash)"
+        0.001,
+        ge=0.0,
+        description="passive penalty per step (a full time limit costs less than a crash)",
     )
-    wall: float = Field(5.0, ge=0.0, description="penalty for touching a wall (ends the episode)")
-    stand_still: float = Field(5.0, ge=0.0, description="penalty for standing still too long")
+    wall: float = Field(1.0, ge=0.0, description="penalty for touching a wall (ends the episode)")
+    stand_still: float = Field(1.0, ge=0.0, description="penalty for standing still too long")
     steering: float = Field(0.01, ge=0.0, description="steer env: penalty per step at full lock")
     stand_still_radius_m: float = Field(
         0.2, ge=0.0, description="staying within this distance of one spot = standing still"
     )
-    stand_still_steps: int = Field(200, ge=1, description="steps standing still that end the episode")
+    stand_still_steps: int = Field(
+        200, ge=1, description="steps standing still that end the episode"
+    )
 
 
 class GridPhysics(_Frozen):
@@ -96,8 +100,10 @@ class SteerPhysics(_Frozen):
     max_speed_m_s: float = Field(2.5, gt=0.0, description="speed limit, m/s")
     throttle_m_s2: float = Field(2.4, gt=0.0, description="acceleration at full throttle, m/s^2")
     brake_m_s2: float = Field(4.8, gt=0.0, description="deceleration at full brake, m/s^2")
-    wheelbase_m: float = Field(0.3, gt=0.0, description="axle distance, m")
-    max_steer_deg: float = Field(30.0, gt=0.0, lt=90.0, description="steering lock, degrees")
+    wheelbase_m: float = Field(0.25, gt=0.0, description="axle distance, m")
+    max_steer_deg: float = Field(
+        35.0, gt=0.0, lt=90.0, description="steering lock, degrees (min turn radius 0.36 m)"
+    )
     steer_rate_deg_s: float = Field(240.0, gt=0.0, description="steering speed, degrees/s")
     drag_per_step: float = Field(1.005, ge=1.0, description="velocity divisor per step")
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE
+from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 import pygame  # after the prompt switch
@@ -111,6 +111,9 @@ class Renderer:
         self._draw_lidar(frame)
         self._draw_kart(frame)
         self._draw_telemetry(frame)
+        return self._present(frame)
+
+    def _present(self, frame: pygame.Surface) -> np.ndarray | None:
         if not self.human:
             return np.ascontiguousarray(pygame.surfarray.array3d(frame).transpose(1, 0, 2))
         pygame.event.pump()
@@ -118,6 +121,28 @@ class Renderer:
         assert self._clock is not None
         self._clock.tick(self.env.metadata["render_fps"])
         return None
+
+    def draw_ghosts(
+        self,
+        positions: np.ndarray,
+        colours: list[Colour],
+        lines: list[tuple[str, str]],
+    ) -> np.ndarray | None:
+        """Draw the track with many karts (replay): ``positions`` ``[k, 2]`` px, one colour each,
+        and ``lines`` of (label, value) in the side panel. Returns the frame as :meth:`draw`."""
+        frame = self._frame
+        frame.blit(self._static, (0, 0))
+        width = max(1, round(2 * self.scale))
+        for cp in self.env.track.checkpoints[:-1]:
+            pygame.draw.line(frame, CHECKPOINT_LATER, self._screen(cp.a), self._screen(cp.b), width)
+        for colour, square in self._finish_squares:
+            pygame.draw.polygon(frame, colour, square)
+        for (x, y), colour in zip(positions, colours, strict=True):
+            pygame.draw.circle(frame, colour, self._screen((x, y)), self._kart_radius, width)
+        y = self._panel_top
+        for label, value in lines:
+            y = self._row(frame, y, label, value, TEXT)
+        return self._present(frame)
 
     def close(self) -> None:
         """Close the window (human mode); safe to call more than once."""

@@ -61,7 +61,7 @@ class SteerEnv(KartEnv[SteerConfig]):
     ``track``, ``action_mode``, ``config`` (:class:`SteerConfig` or a dict), ``render_mode``.
 
     ## Version History
-    * v0: initial version (2.5 m/s, 2.4 m/s^2 throttle, 0.3 m wheelbase, 30 deg lock).
+    * v0: initial version (2.5 m/s, 2.4 m/s^2 throttle, 0.25 m wheelbase, 35 deg lock).
     """
 
     config_class = SteerConfig

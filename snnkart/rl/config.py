@@ -62,7 +62,7 @@ class SNNConfig(_Section):
     """Spiking actor: encoding, two LIF layers, linear readout of mean spike counts."""
 
     num_steps: int = Field(8, ge=1, description="T: SNN time steps per env step")
-    hidden: tuple[int, int] = (128, 128)
+    hidden: tuple[int, int] = (64, 64)
     beta: float = Field(0.9, ge=0.0, lt=1.0, description="membrane decay per SNN step")
     threshold: float = Field(1.0, gt=0.0)
     learn_beta: bool = False
@@ -83,6 +83,11 @@ class RunConfig(_Section):
     tensorboard: bool = True
 
 
+POLICY_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
+    "snn": {"ppo": {"learning_rate": 1e-3}},  # surrogate-gradient SNNs learn faster with a larger step
+}
+
+
 class TrainConfig(BaseModel):
     """Everything that defines a training run."""
 
@@ -100,6 +105,20 @@ class TrainConfig(BaseModel):
     ann: ANNConfig = ANNConfig()
     snn: SNNConfig = SNNConfig()
     run: RunConfig = RunConfig()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _policy_defaults(cls, data: Any) -> Any:
+        """Defaults that differ by policy kind, applied only where the user set nothing."""
+        if not isinstance(data, dict):
+            return data
+        defaults = POLICY_DEFAULTS.get(str(data.get("policy", "snn")), {})
+        for section, values in defaults.items():
+            given = data.get(section)
+            if isinstance(given, BaseModel):
+                continue
+            data = {**data, section: {**values, **(given or {})}}
+        return data
 
     @model_validator(mode="after")
     def _check(self) -> TrainConfig:

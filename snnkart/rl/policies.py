@@ -8,6 +8,7 @@ beta and one threshold per layer, membranes reset at every env step, no recurren
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -35,7 +36,7 @@ def layer_init(layer: nn.Linear, std: float = math.sqrt(2.0), bias: float = 0.0)
 
 def mlp(sizes: list[int], out_std: float) -> nn.Sequential:
     layers: list[nn.Module] = []
-    for a, b in zip(sizes[:-2], sizes[1:-1], strict=True):
+    for a, b in itertools.pairwise(sizes[:-1]):
         layers += [layer_init(nn.Linear(a, b)), nn.Tanh()]
     layers.append(layer_init(nn.Linear(sizes[-2], sizes[-1]), std=out_std))
     return nn.Sequential(*layers)

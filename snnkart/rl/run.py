@@ -1,0 +1,96 @@
+"""Loading a trained run: its config, policy and frozen observation normalisation."""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from snnkart.rl.checkpoint import (
+    CheckpointError,
+    RunningMeanStd,
+    check_compatible,
+    load_checkpoint,
+)
+from snnkart.rl.config import TrainConfig, validate_config
+from snnkart.rl.policies import ActorCritic
+from snnkart.rl.ppo import make_env, policy_for
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+@dataclass
+class LoadedRun:
+    run_dir: Path
+    config: TrainConfig
+    policy: ActorCritic
+    obs_rms: RunningMeanStd
+    meta: dict[str, Any]
+    checkpoint: Path
+
+
+def read_run_config(run_dir: str | Path) -> TrainConfig:
+    """The resolved training config of a run directory."""
+    config_path = Path(run_dir) / "config.toml"
+    if not config_path.is_file():
+        raise CheckpointError(
+            f"{run_dir} is not a run directory (no config.toml); pass the --out of a training run"
+        )
+    return validate_config(tomllib.loads(config_path.read_text()), str(config_path))
+
+
+def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> LoadedRun:
+    """Load ``run_dir/config.toml`` and a checkpoint (default: the latest), check that it fits
+    the env the config describes, and return the policy in evaluation mode."""
+    run_dir = Path(run_dir)
+    cfg = read_run_config(run_dir)
+    ckpt = Path(checkpoint) if checkpoint is not None else run_dir / "checkpoint.pt"
+    state, meta = load_checkpoint(ckpt)
+    env = make_env(cfg)
+    try:
+        check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]
+        policy = policy_for(cfg, env.unwrapped)  # type: ignore[arg-type]
+    finally:
+        env.close()
+    try:
+        policy.load_state_dict(state["policy"])
+    except RuntimeError as exc:
+        raise CheckpointError(
+            f"{ckpt}: weights do not fit the policy in config.toml ({exc})"
+        ) from exc
+    policy.eval()
+    return LoadedRun(run_dir, cfg, policy, RunningMeanStd.from_state(state["obs_rms"]), meta, ckpt)
+
+
+class TorchPredictor:
+    """Deterministic action of a trained policy (argmax or mean), normalisation frozen."""
+
+    def __init__(self, run: LoadedRun, seed: int = 0) -> None:
+        self.run = run
+        self.policy = run.policy
+        self.seed = seed
+        self.generator = torch.Generator().manual_seed(seed)
+        self.discrete = run.policy.discrete
+
+    def reset(self) -> None:
+        pass
+
+    def predict(self, obs: np.ndarray) -> Any:
+        p = self.run.config.ppo
+        raw = np.asarray(obs, dtype=np.float32)[None]
+        norm = self.run.obs_rms.normalize(raw, p.clip_obs) if p.norm_obs else raw
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(self._next_seed())  # rate encoding draws from the global RNG
+            action = self.policy.act_deterministic(torch.from_numpy(norm), torch.from_numpy(raw))
+        a = action[0].numpy()
+        return int(a) if self.discrete else np.clip(a, -1.0, 1.0).astype(np.float32)
+
+    def _next_seed(self) -> int:
+        return int(torch.randint(0, 2**31 - 1, (1,), generator=self.generator))
