@@ -34,6 +34,15 @@ ACTION_MODES = ("discrete", "continuous")
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
 
 
+def _nearest_point(seg: tuple[float, float, float, float], x: float, y: float) -> tuple[float, float]:
+    """The point of the checkpoint line ``seg`` = (ax, ay, bx, by) nearest to (x, y)."""
+    ax, ay, bx, by = seg
+    dx, dy = bx - ax, by - ay
+    t = ((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy)
+    t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+    return ax + t * dx, ay + t * dy
+
+
 @dataclass(frozen=True)
 class ObsField:
     """One named block of the observation vector, with its true bounds."""
@@ -92,7 +101,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._ray_angles = np.empty_like(self._ray_offsets)
         self._lidar = np.zeros(lidar.n_rays, dtype=np.float64)
         self._segments = np.ascontiguousarray(self.track.segments)
-        self._goals = [cp.midpoint for cp in self.track.checkpoints]
+        self._goals = [(*cp.a, *cp.b) for cp in self.track.checkpoints]
         self._n_checkpoints = len(self._goals)
         self._dist_scale = self.config.checkpoint_distance_scale_m * PIXELS_PER_METRE
         self.max_episode_steps = self.config.max_episode_steps or math.ceil(
@@ -102,8 +111,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self.observation_layout: tuple[ObsField, ...] = (
             ObsField("lidar", lidar.n_rays, 0.0, 1.0, "ray distance / range, 1 = no hit"),
             *self._kinematic_fields(),
-            ObsField("checkpoint_cos", 1, -1.0, 1.0, "cos of the direction to the next goal"),
-            ObsField("checkpoint_sin", 1, -1.0, 1.0, "sin of the direction to the next goal"),
+            ObsField("checkpoint_cos", 1, -1.0, 1.0, "cos of the direction to the next checkpoint"),
+            ObsField("checkpoint_sin", 1, -1.0, 1.0, "sin of the direction to the next checkpoint"),
             ObsField("checkpoint_distance", 1, 0.0, 1.0, "min(distance / scale, 1)"),
         )
         low = np.concatenate([np.full(f.size, f.low) for f in self.observation_layout])
@@ -183,8 +192,10 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
         rw = self.config.reward
         finished = self._finished
-        gx, gy = self._goals[self._next_cp]
-        progress_px = math.hypot(gx - x0, gy - y0) - math.hypot(gx - self._x, gy - self._y)
+        goal = self._goals[self._next_cp]
+        gx0, gy0 = _nearest_point(goal, x0, y0)
+        gx1, gy1 = _nearest_point(goal, self._x, self._y)
+        progress_px = math.hypot(gx0 - x0, gy0 - y0) - math.hypot(gx1 - self._x, gy1 - self._y)
         terms = {
             "progress": rw.progress * progress_px / PIXELS_PER_METRE,
             "checkpoint": rw.checkpoint * self._passed_this_step,
@@ -328,7 +339,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         obs = np.empty(self._obs_dim, dtype=np.float32)
         obs[:n] = self._lidar
         k = self._write_kinematics(obs, n)
-        gx, gy = self._goals[self._next_cp]
+        gx, gy = _nearest_point(self._goals[self._next_cp], self._x, self._y)
         dx, dy = gx - self._x, gy - self._y
         dist = math.hypot(dx, dy)
         rel = math.atan2(dy, dx) - (self._heading if self.egocentric else 0.0)

@@ -203,7 +203,8 @@ def validate_config(data: dict[str, Any], source: str = "config") -> TrainConfig
             if err["type"] == "extra_forbidden":
                 lines.append(f"unknown key {loc!r} (misspelled?)")
             else:
-                lines.append(f"{loc}: {err['msg']}")
+                msg = err["msg"].removeprefix("Value error, ")
+                lines.append(f"{loc}: {msg}" if loc else msg)
         raise ConfigError(f"{source}: invalid training config: " + "; ".join(lines)) from None
     except ValueError as exc:
         raise ConfigError(f"{source}: {exc}") from None

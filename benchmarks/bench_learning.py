@@ -1,0 +1,105 @@
+"""Learning, not just running: ANN and SNN on small_S in every env, several seeds.
+
+For each env x policy x seed this trains with the default settings for ``--steps`` env steps
+(``snnkart train``), then evaluates the final deterministic policy on 20 seeded episodes
+(``snnkart eval``). It records the step of the first finished training episode and the
+evaluation success rate. Targets (issue 3): first finish within 200,000 steps and at least
+80 % evaluation success by 300,000 steps, for 3 of 3 seeds, ANN and SNN, every env.
+
+Runs go two at a time (one torch thread each, 2 cores). Results are appended to the JSON
+file after every run, so an interrupted benchmark keeps what it measured.
+
+    python -m benchmarks.bench_learning [--envs grid gazebo steer] [--policies ann snn]
+                                        [--seeds 1 2 3] [--steps 300000] [--jobs 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from benchmarks.common import machine_info, results_path
+
+ROOT = Path(__file__).resolve().parents[1]
+SNNKART = [sys.executable, "-m", "snnkart.cli"]
+
+
+def one_run(env: str, policy: str, seed: int, steps: int, runs: Path) -> dict[str, Any]:
+    run_dir = runs / f"{env}-{policy}-s{seed}"
+    start = time.perf_counter()
+    subprocess.run(
+        [*SNNKART, "train", "--env", env, "--policy", policy, "--track", "small_S",
+         "--seed", str(seed), "--steps", str(steps), "--out", str(run_dir)]
+        + (["--resume"] if (run_dir / "config.toml").exists() else []),
+        check=True, cwd=ROOT, capture_output=True, text=True,
+    )  # fmt: skip
+    train_seconds = time.perf_counter() - start
+    subprocess.run(
+        [*SNNKART, "eval", str(run_dir), "--episodes", "20", "--seed", "10000"],
+        check=True, cwd=ROOT, capture_output=True, text=True,
+    )  # fmt: skip
+    evaluation = json.loads((run_dir / "eval.json").read_text())["summary"]
+    meta = json.loads((run_dir / "checkpoint.json").read_text())
+    first = meta["first_finish_step"]
+    return {
+        "env": env,
+        "policy": policy,
+        "seed": seed,
+        "steps": meta["global_step"],
+        "first_finish_step": None if first < 0 else first,
+        "training_finishes": meta["finishes"],
+        "training_episodes": meta["episodes"],
+        "eval_success_rate": evaluation["success_rate"],
+        "eval_mean_lap_time": evaluation["mean_lap_time"],
+        "eval_crashes": evaluation["crashes"],
+        "train_seconds": train_seconds,
+        "first_finish_within_200k": first >= 0 and first <= 200_000,
+        "eval_success_at_least_80pct": evaluation["success_rate"] >= 0.8,
+        "run_dir": str(run_dir),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--envs", nargs="+", default=["grid", "gazebo", "steer"])
+    parser.add_argument("--policies", nargs="+", default=["ann", "snn"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
+    parser.add_argument("--steps", type=int, default=300_000)
+    parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "bench_learning")
+    args = parser.parse_args()
+
+    path = results_path("bench_learning")
+    results: dict[str, Any] = {"machine": machine_info(), "steps": args.steps, "runs": []}
+    jobs = [(e, p, s) for e in args.envs for p in args.policies for s in args.seeds]
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        futures = [pool.submit(one_run, e, p, s, args.steps, args.runs) for e, p, s in jobs]
+        for fut in futures:
+            r = fut.result()
+            results["runs"].append(r)
+            path.write_text(json.dumps(results, indent=2) + "\n")
+            first = r["first_finish_step"]
+            print(
+                f"{r['env']:6s} {r['policy']} seed {r['seed']}: first finish "
+                f"{'never' if first is None else f'{first:,}'}, eval success "
+                f"{r['eval_success_rate']:.0%}, {r['train_seconds']:.0f} s",
+                flush=True,
+            )
+    print("\nsummary (runs meeting the target / runs):")
+    for e in args.envs:
+        for p in args.policies:
+            rs = [r for r in results["runs"] if r["env"] == e and r["policy"] == p]
+            ff = sum(r["first_finish_within_200k"] for r in rs)
+            ok = sum(r["eval_success_at_least_80pct"] for r in rs)
+            print(f"  {e:6s} {p}: first finish <= 200k {ff}/{len(rs)}, eval >= 80 % {ok}/{len(rs)}")
+    print(f"results written to {path}")
+
+
+if __name__ == "__main__":
+    main()

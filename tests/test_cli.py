@@ -1,0 +1,99 @@
+"""The ``snnkart`` command line, run as the installed console script in subprocesses."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PYTHON = sys.executable
+SNNKART = str(Path(sys.executable).with_name("snnkart"))
+ENV = {**os.environ, "SDL_VIDEODRIVER": "dummy", "COLUMNS": "200", "NO_COLOR": "1"}
+HEAVY = ("torch", "pygame", "lava")
+
+
+def run(
+    *args: str, timeout: float = 60, cwd: Path | None = None
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [SNNKART, *args], capture_output=True, text=True, env=ENV, timeout=timeout, cwd=cwd
+    )
+
+
+def test_help_lists_the_commands() -> None:
+    result = run("--help", timeout=30)
+    assert result.returncode == 0, result.stderr
+    for command in ("play", "train", "eval", "replay", "export", "deploy", "report", "demo"):
+        assert f" {command} " in result.stdout, command
+
+
+@pytest.mark.parametrize(
+    "code",
+    [
+        "import snnkart.cli",
+        "from snnkart.cli import app\ntry:\n    app(['--help'])\nexcept SystemExit as e:\n"
+        "    assert e.code in (0, None), e.code",
+        "from snnkart.cli import app\ntry:\n    app(['train', '--help'])\nexcept SystemExit:\n"
+        "    pass",
+    ],
+    ids=["import", "help", "train-help"],
+)
+def test_cli_startup_does_not_import_heavy_packages(code: str) -> None:
+    script = (
+        "import contextlib, io, json, sys\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        + "".join(f"    {line}\n" for line in code.splitlines())
+        + f"heavy = sorted(m for m in sys.modules if m.split('.')[0] in {HEAVY!r})\n"
+        "print(json.dumps(heavy))\n"
+    )
+    result = subprocess.run(
+        [PYTHON, "-c", script], capture_output=True, text=True, env=ENV, timeout=60
+    )
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout.strip().splitlines()[-1]) == []
+
+
+@pytest.mark.parametrize("command", ["export", "deploy", "report"])
+def test_unimplemented_commands_exit_3(command: str) -> None:
+    result = run(command, timeout=30)
+    assert result.returncode == 3
+    assert "not implemented yet" in result.stderr
+    assert f"snnkart {command}" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_play_headless_with_max_steps() -> None:
+    result = run("play", "--env", "grid", "--track", "small_S", "--max-steps", "20", timeout=60)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "grid on small_S" in result.stdout
+
+
+def test_play_unknown_env_names_it() -> None:
+    result = run("play", "--env", "nope", "--max-steps", "5", timeout=30)
+    assert result.returncode != 0
+    assert "unknown env 'nope'" in result.stderr
+    assert "steer" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_play_unknown_track_names_it(tmp_path: Path) -> None:
+    missing = tmp_path / "nowhere.toml"
+    result = run("play", "--track", str(missing), "--max-steps", "5", timeout=30)
+    assert result.returncode != 0
+    assert "nowhere.toml" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_demo_writes_a_gif(tmp_path: Path) -> None:
+    out = tmp_path / "tmp.gif"
+    result = run("demo", "-o", str(out), "--every", "10", timeout=120, cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert ": finished in" in result.stdout, result.stdout
+    assert str(out) in result.stdout
+    assert out.is_file() and out.stat().st_size > 0
+    assert out.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+    assert not list(tmp_path.glob(".tmp.gif*"))  # written atomically, no temp file left

@@ -1,0 +1,508 @@
+"""PPO training end to end on tiny configs: run directories, checkpoints, resume, Ctrl-C,
+error messages, evaluation and replay."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before anything imports pygame
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from importlib import metadata as importlib_metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import tomli_w
+import torch
+from typer.testing import CliRunner
+
+from snnkart.cli import app
+from snnkart.evaluate import EVAL_SCHEMA, EvalSummary, run_episodes
+from snnkart.rl.checkpoint import CHECKPOINT_SCHEMA, CheckpointError, env_spec, spec_hash
+from snnkart.rl.config import ConfigError, TrainConfig, load_config
+from snnkart.rl.ppo import RunError, Trainer, make_env
+from snnkart.rl.run import TorchPredictor, load_run
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+SNNKART = Path(sys.executable).with_name("snnkart")
+
+TINY = [
+    "ppo.num_envs=2",
+    "ppo.num_steps=64",
+    "ppo.update_epochs=2",
+    "ppo.num_minibatches=2",
+    "run.tensorboard=false",
+]
+BATCH = 2 * 64
+STEPS = 2 * BATCH  # two iterations
+
+EXPECTED_KEYS = {
+    "iteration",
+    "global_step",
+    "charts/episodic_return",
+    "charts/SPS",
+    "charts/first_finish_step",
+    "charts/cumulative_finishes",
+    "losses/approx_kl",
+    "losses/clipfrac",
+    "losses/explained_variance",
+    "losses/first_minibatch_max_ratio_deviation",
+}
+SNN_KEYS = {"snn/firing_rate_layer1", "snn/firing_rate_layer2"}
+
+
+def tiny_config(
+    env: str = "grid",
+    policy: str = "ann",
+    total_steps: int = STEPS,
+    extra: list[str] | None = None,
+) -> TrainConfig:
+    return load_config(
+        overrides={"env": env, "policy": policy, "total_steps": total_steps, "track": "small_S"},
+        sets=[*TINY, *(extra or [])],
+    )
+
+
+def train(cfg: TrainConfig, run_dir: Path, resume: bool = False) -> Trainer:
+    trainer = Trainer(cfg, run_dir, resume=resume)
+    try:
+        trainer.train()
+    finally:
+        trainer.close()
+    return trainer
+
+
+def metrics(run_dir: Path) -> list[dict[str, Any]]:
+    return [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, Trainer]]:
+    """A tiny ANN and a tiny SNN run on grid/small_S, shared by the tests below."""
+    root = tmp_path_factory.mktemp("runs")
+    runs = {}
+    for policy in ("ann", "snn"):
+        run_dir = root / f"grid-{policy}"
+        runs[policy] = (run_dir, train(tiny_config("grid", policy), run_dir))
+    return runs
+
+
+# -- end to end ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("env", "policy", "extra"),
+    [
+        ("grid", "ann", []),
+        ("grid", "snn", []),
+        ("gazebo", "ann", []),
+        ("gazebo", "snn", []),
+        ("steer", "ann", []),
+        ("steer", "snn", []),
+        ("steer", "ann", ["action_mode=continuous"]),
+        ("gazebo", "snn", ["action_mode=continuous"]),
+        ("grid", "snn", ["snn.encoding=rate"]),
+    ],
+)
+def test_tiny_training_run(tmp_path: Path, env: str, policy: str, extra: list[str]) -> None:
+    run_dir = tmp_path / "run"
+    trainer = train(tiny_config(env, policy, extra=extra), run_dir)
+    assert trainer.progress.global_step == STEPS
+    assert trainer.progress.iteration == 2
+    assert not trainer.interrupted
+
+    saved = tomllib.loads((run_dir / "config.toml").read_text())
+    assert saved["env"] == env and saved["policy"] == policy
+    assert saved["total_steps"] == STEPS and saved["ppo"]["num_envs"] == 2
+    if extra == ["action_mode=continuous"]:
+        assert saved["action_mode"] == "continuous"
+        assert not trainer.policy.discrete
+    if "snn.encoding=rate" in extra:
+        assert saved["snn"]["encoding"] == "rate"
+
+    for name in ("checkpoint.pt", "checkpoint.json", "checkpoints/iter_000002.pt"):
+        assert (run_dir / name).is_file(), name
+    meta = json.loads((run_dir / "checkpoint.json").read_text())
+    assert meta["global_step"] == STEPS and meta["policy"] == policy
+
+    records = metrics(run_dir)
+    assert [r["iteration"] for r in records] == [1, 2]
+    assert [r["global_step"] for r in records] == [BATCH, 2 * BATCH]
+    keys = EXPECTED_KEYS | (SNN_KEYS if policy == "snn" else set())
+    for r in records:
+        assert keys <= r.keys(), keys - r.keys()
+        assert r["charts/SPS"] > 0
+        assert 0.0 <= r["losses/clipfrac"] <= 1.0
+        assert np.isfinite(r["losses/approx_kl"])
+        if policy == "snn":
+            for k in SNN_KEYS:
+                assert 0.0 <= r[k] <= 1.0
+        else:
+            assert not SNN_KEYS & r.keys()
+
+    trajectories = sorted((run_dir / "trajectories").glob("iter_*.npz"))
+    assert [p.name for p in trajectories] == ["iter_000001.npz", "iter_000002.npz"]
+    with np.load(trajectories[-1]) as data:
+        assert data["positions"].shape == (64, 2, 2)
+        assert data["episode_end"].shape == (64, 2)
+        assert int(data["global_step"]) == STEPS
+        assert np.isfinite(data["positions"]).all()
+
+
+# -- checkpoints -------------------------------------------------------------------------------
+
+
+def _observations(cfg: TrainConfig, n: int = 40) -> np.ndarray:
+    env = make_env(cfg)
+    rng = np.random.default_rng(5)
+    env.action_space.seed(5)
+    obs, _ = env.reset(seed=123)
+    out = []
+    for _ in range(n):
+        out.append(obs)
+        obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            obs, _ = env.reset(seed=int(rng.integers(1000)))
+    env.close()
+    return np.asarray(out, dtype=np.float32)
+
+
+@pytest.mark.parametrize("policy", ["ann", "snn"])
+def test_checkpoint_roundtrip_gives_the_same_actions(
+    trained: dict[str, tuple[Path, Trainer]], policy: str
+) -> None:
+    run_dir, trainer = trained[policy]
+    run = load_run(run_dir)
+    assert run.config == trainer.cfg
+    assert not run.policy.training
+
+    saved = trainer.policy.state_dict()
+    loaded = run.policy.state_dict()
+    assert saved.keys() == loaded.keys()
+    assert all(torch.equal(saved[k], loaded[k]) for k in saved)
+    np.testing.assert_array_equal(run.obs_rms.mean, trainer.obs_rms.mean)
+    np.testing.assert_array_equal(run.obs_rms.var, trainer.obs_rms.var)
+
+    predictor = TorchPredictor(run, seed=0)
+    clip = trainer.cfg.ppo.clip_obs
+    trainer.policy.eval()
+    try:
+        for raw in _observations(trainer.cfg):
+            norm = trainer.obs_rms.normalize(raw[None].astype(np.float64), clip)
+            expected = trainer.policy.act_deterministic(
+                torch.from_numpy(norm), torch.from_numpy(raw[None])
+            )
+            assert predictor.predict(raw) == int(expected[0])
+            # the actor's raw outputs agree exactly, not just their argmax
+            out_trained = trainer.policy.actor_output(
+                torch.from_numpy(norm), torch.from_numpy(raw[None]), None
+            )[0]
+            out_loaded = run.policy.actor_output(
+                torch.from_numpy(run.obs_rms.normalize(raw[None], clip)),
+                torch.from_numpy(raw[None]),
+                None,
+            )[0]
+            assert torch.equal(out_trained, out_loaded)
+    finally:
+        trainer.policy.train()
+
+
+def test_checkpoint_metadata_and_weights_only_load(
+    trained: dict[str, tuple[Path, Trainer]],
+) -> None:
+    run_dir, trainer = trained["ann"]
+    meta = json.loads((run_dir / "checkpoint.json").read_text())
+    assert meta["schema"] == CHECKPOINT_SCHEMA
+    for pkg in ("python", "snnkart", "torch", "snntorch", "gymnasium", "numpy"):
+        assert meta["versions"][pkg], pkg
+    assert meta["versions"]["torch"] == importlib_metadata.version("torch")
+    env = make_env(trainer.cfg)
+    try:
+        assert meta["env_spec_hash"] == spec_hash(env_spec(env.unwrapped))  # type: ignore[arg-type]
+    finally:
+        env.close()
+    assert meta["env_spec"]["env"] == "grid" and meta["env_spec"]["track"] == "small_S"
+    assert meta["config"]["policy"] == "ann"
+    assert meta["global_step"] == STEPS and meta["iteration"] == 2
+
+    state = torch.load(run_dir / "checkpoint.pt", map_location="cpu", weights_only=True)
+    assert {"policy", "optimizer", "obs_rms", "progress"} <= state.keys()
+    assert int(state["progress"]["global_step"]) == STEPS
+
+
+# -- resume ------------------------------------------------------------------------------------
+
+
+def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    train(tiny_config("steer", "snn", total_steps=STEPS), run_dir)
+    assert [r["global_step"] for r in metrics(run_dir)] == [BATCH, 2 * BATCH]
+
+    longer = tiny_config("steer", "snn", total_steps=2 * STEPS)
+    trainer = Trainer(longer, run_dir, resume=True)
+    try:
+        assert trainer.progress.global_step == STEPS  # not 0
+        assert trainer.progress.iteration == 2
+        assert trainer.cfg.total_steps == 2 * STEPS
+        trainer.train()
+    finally:
+        trainer.close()
+    assert trainer.progress.global_step == 2 * STEPS
+
+    records = metrics(run_dir)
+    assert [r["iteration"] for r in records] == [1, 2, 3, 4]
+    assert [r["global_step"] for r in records] == [BATCH * k for k in (1, 2, 3, 4)]
+    saved = tomllib.loads((run_dir / "config.toml").read_text())
+    assert saved["total_steps"] == 2 * STEPS
+    meta = json.loads((run_dir / "checkpoint.json").read_text())
+    assert meta["global_step"] == 2 * STEPS and meta["iteration"] == 4
+    assert (run_dir / "trajectories" / "iter_000004.npz").is_file()
+
+
+def test_resume_without_a_run_is_an_error(tmp_path: Path) -> None:
+    with pytest.raises(RunError, match="nothing to resume"):
+        Trainer(tiny_config(), tmp_path / "empty", resume=True)
+
+
+def test_ctrl_c_saves_a_checkpoint_and_exits_130(tmp_path: Path) -> None:
+    run_dir = tmp_path / "run"
+    cmd = [
+        str(SNNKART), "train", "--env", "grid", "--track", "small_S", "--policy", "ann",
+        "--steps", "100000000", "--out", str(run_dir),
+        *[arg for s in TINY for arg in ("--set", s)],
+    ]  # fmt: skip
+    env = {**os.environ, "SDL_VIDEODRIVER": "dummy", "COLUMNS": "200"}
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        deadline = time.monotonic() + 90
+        metrics_path = run_dir / "metrics.jsonl"
+        while not (metrics_path.is_file() and metrics_path.read_text().count("\n") >= 1):
+            assert proc.poll() is None, proc.communicate(timeout=10)
+            assert time.monotonic() < deadline, "training wrote no metrics within 90 s"
+            time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=10)
+    output = stdout + stderr
+    assert proc.returncode == 130, output
+    assert (run_dir / "checkpoint.pt").is_file()
+    assert "--resume" in output and "interrupted" in output, output
+    assert "Traceback" not in output
+
+    # the checkpoint holds exactly the completed iterations (a partial rollout is dropped)
+    records = metrics(run_dir)
+    meta = json.loads((run_dir / "checkpoint.json").read_text())
+    assert meta["iteration"] == records[-1]["iteration"] == len(records)
+    assert meta["global_step"] == records[-1]["global_step"] == len(records) * BATCH
+
+    # and it resumes from there
+    done = len(records) * BATCH
+    trainer = train(tiny_config(total_steps=done + BATCH), run_dir, resume=True)
+    assert trainer.progress.global_step == done + BATCH
+    assert [r["iteration"] for r in metrics(run_dir)] == list(range(1, len(records) + 2))
+
+
+# -- bad inputs --------------------------------------------------------------------------------
+
+
+def test_unknown_env_names_the_choices() -> None:
+    with pytest.raises(ConfigError) as err:
+        load_config(overrides={"env": "nope"})
+    msg = str(err.value)
+    assert "'nope'" in msg
+    for name in ("grid", "gazebo", "steer"):
+        assert name in msg
+
+
+def test_missing_track_file_fails_cleanly_in_the_cli(tmp_path: Path) -> None:
+    track = tmp_path / "no_such_track.toml"
+    result = CliRunner().invoke(
+        app,
+        ["train", "--track", str(track), "--steps", "256", "--out", str(tmp_path / "run"),
+         *[arg for s in TINY for arg in ("--set", s)]],
+    )  # fmt: skip
+    assert result.exit_code != 0
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    assert "no_such_track" in result.output
+    assert "error:" in result.output
+    assert not (tmp_path / "run").exists()
+
+
+def test_misspelled_config_key_in_a_file(tmp_path: Path) -> None:
+    path = tmp_path / "train.toml"
+    path.write_text('env = "grid"\n[ppo]\nlearnig_rate = 1e-3\n')
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    msg = str(err.value)
+    assert "ppo.learnig_rate" in msg
+    assert "misspelled" in msg
+    assert str(path) in msg
+
+    path.write_text('polcy = "snn"\n')
+    with pytest.raises(ConfigError, match=r"'polcy'.*misspelled"):
+        load_config(path)
+
+
+def test_checkpoint_for_another_observation_size(
+    tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
+) -> None:
+    run_dir, _ = trained["ann"]
+    other = tmp_path / "other"
+    shutil.copytree(run_dir, other)
+    data = tomllib.loads((other / "config.toml").read_text())
+    data["env_config"] = {"lidar": {"n_rays": 8}}
+    (other / "config.toml").write_text(tomli_w.dumps(data))
+
+    with pytest.raises(CheckpointError) as err:
+        load_run(other)
+    msg = str(err.value)
+    assert "observation size" in msg
+    assert "checkpoint.pt" in msg
+    # the original still loads
+    assert load_run(run_dir).config.env == "grid"
+
+
+def test_existing_run_dir_without_resume(
+    tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
+) -> None:
+    run_dir, _ = trained["ann"]
+    before = (run_dir / "metrics.jsonl").read_text()
+    with pytest.raises(RunError, match="--resume"):
+        Trainer(tiny_config(), run_dir)
+    result = CliRunner().invoke(
+        app, ["train", "--env", "grid", "--steps", "256", "--out", str(run_dir)]
+    )
+    assert result.exit_code != 0
+    assert "already holds a run" in result.output and "--resume" in result.output
+    assert (run_dir / "metrics.jsonl").read_text() == before  # untouched
+
+
+def test_eval_and_replay_of_a_non_run_directory(tmp_path: Path) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    runner = CliRunner()
+    result = runner.invoke(app, ["eval", str(empty), "--episodes", "1"])
+    assert result.exit_code == 2, result.output
+    assert "not a run directory" in result.output
+    assert not (empty / "eval.json").exists()
+    result = runner.invoke(app, ["replay", str(empty), "--out", str(tmp_path / "x.gif")])
+    assert result.exit_code == 2, result.output
+    assert "not a run directory" in result.output
+    assert not (tmp_path / "x.gif").exists()
+
+
+# -- evaluation and replay ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("policy", ["ann", "snn"])
+def test_run_episodes_summary_is_consistent(
+    trained: dict[str, tuple[Path, Trainer]], policy: str
+) -> None:
+    run = load_run(trained[policy][0])
+    env = make_env(run.config)
+    try:
+        results = run_episodes(env, TorchPredictor(run, seed=3), episodes=3, seed=100)
+    finally:
+        env.close()
+    summary = EvalSummary.of(results)
+    assert summary.episodes == len(results) == 3
+    assert [r.seed for r in results] == [100, 101, 102]
+    successes = round(summary.success_rate * summary.episodes)
+    assert successes + summary.crashes + summary.stood_still + summary.timeouts == 3
+    for r in results:
+        outcomes = [r.finished, r.crashed, r.stood_still, r.timed_out]
+        assert sum(outcomes) == 1, r
+        assert r.length >= 1
+        assert (r.lap_time is not None) == r.finished
+    assert summary.mean_return == pytest.approx(np.mean([r.episode_return for r in results]))
+
+
+def test_eval_cli_writes_json(tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]) -> None:
+    run_dir, _ = trained["snn"]
+    out = tmp_path / "eval.json"
+    result = CliRunner().invoke(app, ["eval", str(run_dir), "--episodes", "2", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "2 episodes" in result.output and str(out) in result.output
+    record = json.loads(out.read_text())
+    assert record["schema"] == EVAL_SCHEMA == "snnkart/eval/v1"
+    assert record["summary"]["episodes"] == 2
+    assert len(record["episodes"]) == 2
+    assert record["policy"] == "snn" and record["env"] == "grid"
+    assert record["global_step"] == STEPS
+
+
+def test_eval_cli_default_output_is_in_the_run_dir(
+    tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
+) -> None:
+    run_dir = tmp_path / "run"
+    shutil.copytree(trained["ann"][0], run_dir)
+    result = CliRunner().invoke(app, ["eval", str(run_dir), "--episodes", "2"])
+    assert result.exit_code == 0, result.output
+    record = json.loads((run_dir / "eval.json").read_text())
+    assert record["schema"] == "snnkart/eval/v1"
+    assert record["summary"]["episodes"] == 2
+
+
+def test_replay_writes_gif_and_mp4(
+    tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
+) -> None:
+    run_dir, _ = trained["ann"]
+    runner = CliRunner()
+    gif = tmp_path / "x.gif"
+    result = runner.invoke(app, ["replay", str(run_dir), "--mode", "batch", "--out", str(gif)])
+    assert result.exit_code == 0, result.output
+    assert gif.is_file() and gif.stat().st_size > 0
+    assert gif.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
+
+    mp4 = tmp_path / "x.mp4"
+    result = runner.invoke(
+        app, ["replay", str(run_dir), "--mode", "all", "--out", str(mp4), "--every", "4"]
+    )
+    assert result.exit_code == 0, result.output
+    assert mp4.is_file() and mp4.stat().st_size > 0
+    assert b"ftyp" in mp4.read_bytes()[:64]
+
+
+def test_replay_unknown_mode_fails_cleanly(
+    tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
+) -> None:
+    run_dir, _ = trained["ann"]
+    out = tmp_path / "bad.gif"
+    result = CliRunner().invoke(
+        app, ["replay", str(run_dir), "--mode", "sideways", "--out", str(out)]
+    )
+    assert result.exit_code == 2, result.output
+    assert "sideways" in result.output and "batch" in result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    assert not out.exists()
+    assert not list(tmp_path.glob(".bad.gif*"))  # no temp file left behind
+
+
+# -- learning ----------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_ann_learns_to_finish_grid_small_s(tmp_path: Path) -> None:
+    cfg = load_config(
+        overrides={"env": "grid", "track": "small_S", "policy": "ann", "total_steps": 80_000,
+                   "seed": 1},
+        sets=["run.tensorboard=false"],
+    )  # fmt: skip
+    trainer = train(cfg, tmp_path / "run")
+    assert trainer.progress.global_step >= 80_000
+    assert trainer.progress.finishes > 0, trainer.progress
+    assert trainer.progress.first_finish_step > 0
