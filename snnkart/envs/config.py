@@ -98,6 +98,9 @@ class SteerPhysics(_Frozen):
     """Kinematic bicycle model: the turn rate is speed * tan(steering angle) / wheelbase."""
 
     max_speed_m_s: float = Field(2.5, gt=0.0, description="speed limit, m/s")
+    max_reverse_m_s: float = Field(
+        0.5, ge=0.0, description="reverse speed limit, m/s (braking at a standstill reverses)"
+    )
     throttle_m_s2: float = Field(2.4, gt=0.0, description="acceleration at full throttle, m/s^2")
     brake_m_s2: float = Field(4.8, gt=0.0, description="deceleration at full brake, m/s^2")
     wheelbase_m: float = Field(0.25, gt=0.0, description="axle distance, m")

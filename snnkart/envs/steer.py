@@ -23,13 +23,13 @@ class SteerEnv(KartEnv[SteerConfig]):
     The hardest and most realistic snnkart task. Kinematic bicycle model: the yaw rate is
     ``v * tan(delta) / wheelbase``, so the turn rate grows with speed and is zero at rest.
     The steering angle ``delta`` moves toward the commanded angle at ``steer_rate_deg_s``.
-    Braking stops the car; it does not reverse.
+    Braking slows the car; braking at a standstill reverses it (up to ``max_reverse_m_s``).
 
     ## Action Space
     ``action_mode="discrete"`` (default): ``Discrete(9)``, action = 3 * throttle + steer with
     throttle in {0 brake, 1 coast, 2 throttle} and steer in {0 left, 1 straight, 2 right};
     4 is "coast straight". ``"continuous"``: ``Box(-1, 1, (2,))`` = (throttle, steer):
-    throttle > 0 accelerates, < 0 brakes; steer is the commanded angle in units of the lock
+    throttle > 0 accelerates, < 0 brakes and then reverses; steer is the commanded angle in units of the lock
     (positive = right, clockwise on screen).
 
     ## Observation Space
@@ -38,7 +38,7 @@ class SteerEnv(KartEnv[SteerConfig]):
     | index | name | range | meaning |
     |---|---|---|---|
     | 0 .. n-1 | lidar | [0, 1] | egocentric rays, ray k at heading - 180 deg + k*fov/n, distance / range, 1 = no hit |
-    | n | speed | [0, 1] | forward speed / max speed |
+    | n | speed | [-1, 1] | forward speed / max speed (negative when reversing) |
     | n+1 | steering | [-1, 1] | steering angle / steering lock (positive = right) |
     | n+2 | heading_cos | [-1, 1] | cos of the heading (world frame, y down) |
     | n+3 | heading_sin | [-1, 1] | sin of the heading |
@@ -78,7 +78,7 @@ class SteerEnv(KartEnv[SteerConfig]):
 
     def _kinematic_fields(self) -> tuple[ObsField, ...]:
         return (
-            ObsField("speed", 1, 0.0, 1.0, "forward speed / max speed"),
+            ObsField("speed", 1, -1.0, 1.0, "forward speed / max speed (negative in reverse)"),
             ObsField("steering", 1, -1.0, 1.0, "steering angle / steering lock"),
             ObsField("heading_cos", 1, -1.0, 1.0, "cos of the heading"),
             ObsField("heading_sin", 1, -1.0, 1.0, "sin of the heading"),
@@ -89,6 +89,7 @@ class SteerEnv(KartEnv[SteerConfig]):
         self._v = 0.0  # px/s
         self._delta = 0.0  # rad
         self._vmax = p.max_speed_m_s * PIXELS_PER_METRE
+        self._vrev = min(p.max_reverse_m_s, p.max_speed_m_s) * PIXELS_PER_METRE
         self._accel = p.throttle_m_s2 * PIXELS_PER_METRE * DT
         self._brake = p.brake_m_s2 * PIXELS_PER_METRE * DT
         self._lock = p.max_steer_rad
@@ -102,10 +103,13 @@ class SteerEnv(KartEnv[SteerConfig]):
             throttle, steer = _THROTTLE[a // 3], _STEER[a % 3]
         else:
             throttle, steer = (float(a) for a in np.clip(action, -1.0, 1.0))
+        # Throttle drives forward (and brakes a reversing car); brake stops, then reverses.
         if throttle > 0.0:
-            self._v = min(self._v + throttle * self._accel, self._vmax)
+            rate = self._brake if self._v < 0.0 else self._accel
+            self._v = min(self._v + throttle * rate, self._vmax)
         elif throttle < 0.0:
-            self._v = max(self._v + throttle * self._brake, 0.0)
+            rate = self._brake if self._v > 0.0 else self._accel
+            self._v = max(self._v + throttle * rate, -self._vrev)
         target = steer * self._lock
         self._delta += min(max(target - self._delta, -self._steer_step), self._steer_step)
         self._yaw_rate = self._v * math.tan(self._delta) / self._wheelbase
@@ -129,4 +133,4 @@ class SteerEnv(KartEnv[SteerConfig]):
 
     @property
     def speed_m_s(self) -> float:
-        return self._v / PIXELS_PER_METRE
+        return abs(self._v) / PIXELS_PER_METRE

@@ -130,12 +130,14 @@ class SpikingActor(nn.Module):
 
     Each env step is one window of ``T`` SNN steps, starting from zero membranes:
 
-        I1[t] = W1 x[t] + b1            (rate: x[t] ~ Bernoulli(obs01); current: x[t] = obs01)
+        I1[t] = W1 x[t] + b1            (rate: x[t] ~ Bernoulli(obs01); current: x[t] = z)
         U1[t] = beta1 U1[t-1] (1 - S1[t-1]) + I1[t],   S1[t] = H(U1[t] - theta1)
         U2[t] = beta2 U2[t-1] (1 - S2[t-1]) + W2 S1[t] + b2,  S2[t] = H(U2[t] - theta2)
         out   = W3 mean_t(S2[t]) + b3
 
-    ``obs01`` is the observation scaled to [0, 1] by the env's (true) bounds. The reset is
+    ``obs01`` is the observation scaled to [0, 1] by the env's (true) bounds, ``z`` the
+    observation normalised by the running mean and standard deviation (frozen in the
+    checkpoint, applied on the host at deployment). The reset is
     reset-to-zero (snntorch ``reset_mechanism="zero"``), the surrogate gradient the fast
     sigmoid ``1 / (1 + k|U - theta|)^2``. Inputs ``[B, n_in]``, output ``[B, n_out]``.
     """
@@ -226,10 +228,13 @@ class SNNPolicy(ActorCritic):
         return (raw_obs - self.obs_low) / self.obs_span
 
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
-        obs01 = self.scale01(raw_obs)
-        if self.cfg.encoding == "rate" and input_spikes is None:
-            input_spikes = self.snn.encode(obs01)
-        out, rates, _ = self.snn(obs01, input_spikes, fused=self.cfg.fused and self.training)
+        if self.cfg.encoding == "rate":
+            x = self.scale01(raw_obs)  # spike probabilities from the true bounds
+            if input_spikes is None:
+                input_spikes = self.snn.encode(x)
+        else:
+            x = obs  # the normalised observation drives the first layer's current
+        out, rates, _ = self.snn(x, input_spikes, fused=self.cfg.fused and self.training)
         return out, input_spikes, rates
 
     @torch.no_grad()
