@@ -124,7 +124,9 @@ def main() -> None:
         results[name] = r
         print(f"{name:15s} {r['steps_per_s']:7.0f} steps/s  (rollout {r['rollout_steps_per_s']:7.0f} "
               f"steps/s, update {r['update_seconds_per_iteration']:.2f} s/iteration)")  # fmt: skip
-    ann, snn, sb3 = (results[k]["steps_per_s"] for k in ("snnkart_ann", "snnkart_snn_T8", "sb3_ppo"))
+    ann, snn, sb3 = (
+        results[k]["steps_per_s"] for k in ("snnkart_ann", "snnkart_snn_T8", "sb3_ppo")
+    )
     results["ann_vs_sb3"] = ann / sb3
     results["snn_vs_ann"] = snn / ann
     print(f"snnkart ANN / SB3 PPO: {ann / sb3:.2f}x (target >= 1)")

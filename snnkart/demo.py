@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
+from snnkart.envs.base import KartEnv
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.video import video_writer
 
@@ -21,7 +22,7 @@ def scripted_gif(
 
     if every < 1:
         raise ValueError(f"every must be >= 1, got {every}")
-    env = make(env_name, track=track, render_mode="rgb_array").unwrapped
+    env = cast(KartEnv, make(env_name, track=track, render_mode="rgb_array").unwrapped)
     frames = []
     try:
         with Progress(transient=True) as progress:

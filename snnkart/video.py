@@ -26,9 +26,9 @@ def video_writer(path: str | Path, fps: float) -> Iterator[Any]:
     check_video_path(path)
     with atomic_path(path) as tmp:
         if path.suffix.lower() == ".gif":
-            writer = imageio.get_writer(tmp, format="GIF", mode="I", duration=1000.0 / fps, loop=0)
+            writer = imageio.get_writer(tmp, format="GIF", mode="I", duration=1000.0 / fps, loop=0)  # type: ignore[arg-type]
         else:
-            writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, macro_block_size=1)
+            writer = imageio.get_writer(tmp, format="FFMPEG", mode="I", fps=fps, macro_block_size=1)  # type: ignore[arg-type]
         try:
             yield writer
         finally:

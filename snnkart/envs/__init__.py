@@ -5,6 +5,8 @@ Registration uses string entry points, so importing the package does not import 
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 
 ENV_IDS: dict[str, str] = {
@@ -39,7 +41,7 @@ def resolve_env_name(name: str) -> str:
     return ENV_ALIASES[key]
 
 
-def make(name: str, **kwargs: object) -> gym.Env:
+def make(name: str, **kwargs: Any) -> gym.Env:
     """``gymnasium.make`` by any accepted env name."""
     return gym.make(ENV_IDS[resolve_env_name(name)], **kwargs)
 

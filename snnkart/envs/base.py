@@ -34,7 +34,9 @@ ACTION_MODES = ("discrete", "continuous")
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
 
 
-def _nearest_point(seg: tuple[float, float, float, float], x: float, y: float) -> tuple[float, float]:
+def _nearest_point(
+    seg: tuple[float, float, float, float], x: float, y: float
+) -> tuple[float, float]:
     """The point of the checkpoint line ``seg`` = (ax, ay, bx, by) nearest to (x, y)."""
     ax, ay, bx, by = seg
     dx, dy = bx - ax, by - ay
@@ -57,7 +59,7 @@ class ObsField:
 class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     """Base class; see :class:`GridEnv`, :class:`GazeboEnv` and :class:`SteerEnv`."""
 
-    metadata: ClassVar[dict[str, Any]] = {
+    metadata = {  # noqa: RUF012  (gymnasium's convention)
         "render_modes": ["human", "rgb_array"],
         "render_fps": RENDER_FPS,
     }
@@ -82,15 +84,17 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
                 f"{', '.join(self.metadata['render_modes'])} or None"
             )
         if config is None:
-            config = self.config_class()
+            resolved = self.config_class()
         elif isinstance(config, dict):
-            config = self.config_class.model_validate(config)
-        elif not isinstance(config, self.config_class):
+            resolved = self.config_class.model_validate(config)
+        elif isinstance(config, self.config_class):
+            resolved = config
+        else:
             raise TypeError(
                 f"{type(self).__name__} needs a {self.config_class.__name__} or a dict, "
                 f"got {type(config).__name__}"
             )
-        self.config: ConfigT = config  # type: ignore[assignment]
+        self.config: ConfigT = resolved  # type: ignore[assignment]
         self.track = load_track(track)
         self.action_mode = action_mode
         self.render_mode = render_mode
@@ -117,7 +121,9 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         )
         low = np.concatenate([np.full(f.size, f.low) for f in self.observation_layout])
         high = np.concatenate([np.full(f.size, f.high) for f in self.observation_layout])
-        self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32))
+        self.observation_space: spaces.Box = spaces.Box(
+            low.astype(np.float32), high.astype(np.float32)
+        )
         self._obs_dim = int(low.shape[0])
         self.action_space = self._make_action_space()
 

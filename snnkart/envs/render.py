@@ -239,9 +239,9 @@ class Renderer:
         heading = self._small_font.render("reward terms, last step", True, TEXT_DIM)
         frame.blit(heading, (self.track_width + self._pad, y))
         y += round(heading.get_height() * 1.6)
-        for name, value in env.last_reward_terms.items():
-            colour = POSITIVE if value > 0 else NEGATIVE if value < 0 else TEXT_DIM
-            y = self._row(frame, y, name, f"{value:+.3f}", colour)
+        for name, term in env.last_reward_terms.items():
+            colour = POSITIVE if term > 0 else NEGATIVE if term < 0 else TEXT_DIM
+            y = self._row(frame, y, name, f"{term:+.3f}", colour)
 
     # -- helpers -------------------------------------------------------------------------------
 

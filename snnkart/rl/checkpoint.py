@@ -38,7 +38,7 @@ def env_spec(env: KartEnv) -> dict[str, Any]:
         "action_mode": env.action_mode,
         "action_space": str(env.action_space),
         "observation_layout": [[f.name, f.size, f.low, f.high] for f in env.observation_layout],
-        "obs_dim": int(env.observation_space.shape[0]),
+        "obs_dim": int(env.observation_space.low.shape[0]),
         "env_config": env.config.model_dump(mode="json"),
     }
 

@@ -84,7 +84,9 @@ class RunConfig(_Section):
 
 
 POLICY_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
-    "snn": {"ppo": {"learning_rate": 1e-3}},  # surrogate-gradient SNNs learn faster with a larger step
+    "snn": {
+        "ppo": {"learning_rate": 1e-3}
+    },  # surrogate-gradient SNNs learn faster with a larger step
 }
 
 

@@ -56,6 +56,7 @@ class ActorCritic(nn.Module):
     """Common part: action distribution, critic, observation scaling for the actor."""
 
     kind = "base"
+    critic: nn.Module
 
     def __init__(
         self, obs_dim: int, action_dim: int, discrete: bool, init_log_std: float = -0.5
@@ -205,6 +206,8 @@ class SNNPolicy(ActorCritic):
     """Spiking actor (:class:`SpikingActor`) with an MLP critic on normalised observations."""
 
     kind = "snn"
+    obs_low: torch.Tensor
+    obs_span: torch.Tensor
 
     def __init__(
         self,

@@ -95,12 +95,16 @@ def make_env(cfg: TrainConfig, render_mode: str | None = None) -> gym.Env:
 
 def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
     space = env.action_space
-    discrete = isinstance(space, gym.spaces.Discrete)
-    action_dim = int(space.n) if discrete else int(space.shape[0])
+    if isinstance(space, gym.spaces.Discrete):
+        discrete, action_dim = True, int(space.n)
+    elif isinstance(space, gym.spaces.Box):
+        discrete, action_dim = False, int(space.low.shape[0])
+    else:
+        raise TypeError(f"unsupported action space {space}")
     obs_space = env.observation_space
     return build_policy(
         cfg.policy,
-        int(obs_space.shape[0]),
+        int(obs_space.low.shape[0]),
         action_dim,
         discrete,
         cfg.ann,
