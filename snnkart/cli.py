@@ -184,9 +184,26 @@ def replay(
 
 
 @app.command()
-def export() -> None:
-    """Export a spiking policy to NIR (not implemented yet)."""
-    _not_yet("export", "NIR export arrives with the deployment issue")
+def export(
+    run_dir: Annotated[Path, typer.Argument(help="a training run of an SNN policy")],
+    nir_format: Annotated[bool, typer.Option("--nir", help="export to NIR (the only format)")] = False,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="NIR file to write")] = None,
+    checkpoint: Annotated[Path | None, typer.Option(help="default: the run's latest")] = None,
+) -> None:
+    """Export a spiking policy to NIR, with a manifest of what NIR does not carry."""
+    if not nir_format:
+        _fail("choose an export format: --nir")
+    from snnkart.export.nir_export import ExportError, export_nir
+    from snnkart.rl.checkpoint import CheckpointError
+    from snnkart.rl.config import ConfigError
+    from snnkart.rl.run import load_run
+
+    try:
+        run = load_run(run_dir, checkpoint)
+        nir_path, manifest = export_nir(run, out or run_dir / "policy.nir")
+    except (ExportError, CheckpointError, ConfigError) as exc:
+        _fail(str(exc))
+    typer.echo(f"NIR graph written to {nir_path}\nmanifest written to {manifest}")
 
 
 @app.command()

@@ -1,0 +1,101 @@
+"""The deployment manifest: everything a backend needs that a NIR graph does not carry.
+
+A NIR file describes the spiking actor's per-step graph (Affine -> LIF -> Affine -> LIF ->
+Affine). The manifest beside it records how to drive it: the discretisation convention, T SNN
+steps per env step with membranes reset at each env step, the input encoding and the host-side
+observation normalisation, the readout (mean over the T steps of the last Affine's output) and
+the action decoding, and the env the policy was trained on. A backend needs only these two
+files, never the training code. This module imports neither torch nor Lava.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from snnkart.io import atomic_path
+
+MANIFEST_SCHEMA = "snnkart/manifest/v1"
+
+
+class ManifestError(ValueError):
+    """A manifest is missing, malformed or inconsistent with its NIR graph."""
+
+
+@dataclass(frozen=True)
+class LayerSpec:
+    """One LIF population: its NIR node name, size and the shared decay and threshold."""
+
+    node: str
+    size: int
+    beta: float
+    threshold: float
+
+
+@dataclass(frozen=True)
+class Manifest:
+    schema: str
+    nir_file: str
+    nir_dt: float  # the dt of the NIR time constants: tau = dt / (1 - beta), r = tau / dt
+    num_steps: int  # T SNN steps per env step; membranes reset to 0 before each env step
+    layers: tuple[LayerSpec, ...]
+    encoding: str  # "current" | "rate"
+    obs_mean: tuple[float, ...]
+    obs_std: tuple[float, ...]  # sqrt(var + eps), divided by
+    obs_clip: float
+    obs_low: tuple[float, ...]
+    obs_high: tuple[float, ...]
+    readout_node: str
+    action_mode: str  # "discrete": argmax; "continuous": clip to [-1, 1]
+    env: dict[str, Any]
+    versions: dict[str, str]
+    training: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def obs_dim(self) -> int:
+        return len(self.obs_mean)
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self), indent=2) + "\n"
+
+    @classmethod
+    def from_json(cls, text: str, source: str = "manifest") -> Manifest:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise ManifestError(f"{source}: not valid JSON ({exc})") from exc
+        if not isinstance(data, dict) or data.get("schema") != MANIFEST_SCHEMA:
+            found = data.get("schema") if isinstance(data, dict) else type(data).__name__
+            raise ManifestError(f"{source}: schema {found!r} is not {MANIFEST_SCHEMA!r}")
+        try:
+            data["layers"] = tuple(LayerSpec(**layer) for layer in data["layers"])
+            for key in ("obs_mean", "obs_std", "obs_low", "obs_high"):
+                data[key] = tuple(float(x) for x in data[key])
+            manifest = cls(**data)
+        except (KeyError, TypeError) as exc:
+            raise ManifestError(f"{source}: malformed manifest ({exc})") from exc
+        if manifest.encoding not in ("current", "rate"):
+            raise ManifestError(f"{source}: unknown encoding {manifest.encoding!r}")
+        return manifest
+
+    def write(self, path: Path) -> None:
+        with atomic_path(path) as tmp:
+            tmp.write_text(self.to_json())
+
+    @classmethod
+    def read(cls, path: Path) -> Manifest:
+        path = Path(path)
+        if not path.is_file():
+            raise ManifestError(
+                f"no manifest at {path}; it is written next to the .nir file by "
+                "`snnkart export --nir`"
+            )
+        return cls.from_json(path.read_text(), str(path))
+
+
+def manifest_path(nir_path: Path) -> Path:
+    """The manifest that belongs to a NIR file: ``policy.nir`` -> ``policy.manifest.json``."""
+    nir_path = Path(nir_path)
+    return nir_path.with_name(nir_path.stem + ".manifest.json")

@@ -1,0 +1,153 @@
+"""Export a trained spiking actor to NIR (through snntorch's exporter) plus its manifest.
+
+Sharp edges of snntorch 1.0 / nir 1.0.8 this module handles (``shared/reference/
+snn-nir-lava.md`` section 1.4): a scalar beta or threshold breaks NIR type inference, so each
+layer's shared value is written as a per-neuron vector of equal values; the sample input has
+no batch dimension; ``reset_mechanism`` is not exported (NIR LIF resets to ``v_reset``), so only
+reset-to-zero networks are accepted. What a Lava target cannot run is refused with the reason.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from snnkart.io import atomic_path
+from snnkart.export.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
+from snnkart.rl.checkpoint import spec_hash, versions
+from snnkart.rl.policies import SNNPolicy
+from snnkart.rl.run import LoadedRun
+
+NIR_DT = 1e-4
+"""snntorch's export convention: tau = NIR_DT / (1 - beta), r = tau / NIR_DT."""
+
+
+class ExportError(ValueError):
+    """The policy cannot be exported for the Lava target; the message says why."""
+
+
+def _leaky(size: int, beta: float, threshold: float) -> torch.nn.Module:
+    import snntorch as snn
+
+    return snn.Leaky(
+        beta=torch.full((size,), beta),
+        threshold=torch.full((size,), threshold),
+        reset_mechanism="zero",
+        reset_delay=False,
+        init_hidden=True,
+    )
+
+
+def check_exportable(policy: Any) -> None:
+    """Refuse what Lava's LIF cannot run: subtractive reset, non-uniform decay or threshold."""
+    if not isinstance(policy, SNNPolicy):
+        raise ExportError(
+            f"only spiking policies can be exported to NIR for Lava; this run trained a "
+            f"{getattr(policy, 'kind', type(policy).__name__).upper()} policy"
+        )
+    for name in ("lif1", "lif2"):
+        lif = getattr(policy.snn, name)
+        if lif.reset_mechanism != "zero":
+            raise ExportError(
+                f"{name} uses reset_mechanism={lif.reset_mechanism!r}; Lava's LIF can only reset "
+                "the membrane to zero (NIR v_reset = 0); retrain with reset to zero"
+            )
+        beta = lif.beta.detach().reshape(-1)
+        thr = lif.threshold.detach().reshape(-1)
+        if not torch.all(beta == beta[0]) or not torch.all(thr == thr[0]):
+            raise ExportError(
+                f"{name} has per-neuron decay or threshold values; Lava's LIF has one decay and "
+                "one threshold per population"
+            )
+        b = float(beta[0].clamp(0, 1))
+        if not 0.0 <= b < 1.0:
+            raise ExportError(
+                f"{name} has beta = {b}; beta must be < 1 (beta = 1 is an infinite NIR time "
+                "constant)"
+            )
+    for pname, p in policy.snn.named_parameters():
+        if not torch.isfinite(p).all():
+            raise ExportError(f"parameter {pname} contains NaN or infinite values")
+
+
+def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
+    """Write ``out`` (.nir) and its manifest; return both paths."""
+    import nir
+    from snntorch.export_nir import export_to_nir
+
+    policy = run.policy
+    check_exportable(policy)
+    assert isinstance(policy, SNNPolicy)
+    actor = policy.snn
+    sizes = (actor.fc1.out_features, actor.fc2.out_features)
+    betas = [float(lif.beta.detach().reshape(-1)[0].clamp(0, 1)) for lif in (actor.lif1, actor.lif2)]
+    thresholds = [float(lif.threshold.detach().reshape(-1)[0]) for lif in (actor.lif1, actor.lif2)]
+    net = torch.nn.Sequential(
+        actor.fc1,
+        _leaky(sizes[0], betas[0], thresholds[0]),
+        actor.fc2,
+        _leaky(sizes[1], betas[1], thresholds[1]),
+        actor.readout,
+    ).eval()
+    with torch.no_grad():
+        graph = export_to_nir(net, torch.zeros(actor.fc1.in_features))
+    _check_graph(graph, sizes, betas, thresholds)
+    graph.metadata = {"snnkart_manifest": "see the .manifest.json file beside this file"}
+
+    out = Path(out)
+    cfg = run.config
+    rms = run.obs_rms
+    spec = run.meta["env_spec"]
+    manifest = Manifest(
+        schema=MANIFEST_SCHEMA,
+        nir_file=out.name,
+        nir_dt=NIR_DT,
+        num_steps=cfg.snn.num_steps,
+        layers=(
+            LayerSpec("1", sizes[0], betas[0], thresholds[0]),
+            LayerSpec("3", sizes[1], betas[1], thresholds[1]),
+        ),
+        encoding=cfg.snn.encoding,
+        obs_mean=tuple(float(x) for x in rms.mean),
+        obs_std=tuple(float(x) for x in np.sqrt(rms.var + 1e-8)),
+        obs_clip=cfg.ppo.clip_obs,
+        obs_low=tuple(float(x) for x in policy.obs_low),
+        obs_high=tuple(float(x) for x in (policy.obs_low + policy.obs_span)),
+        readout_node="4",
+        action_mode=cfg.action_mode,
+        env={**spec, "env_spec_hash": spec_hash(spec)},
+        versions=versions(),
+        training={"run": str(run.run_dir), "checkpoint": str(run.checkpoint),
+                  "global_step": run.meta.get("global_step")},  # fmt: skip
+    )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(out) as tmp:
+        nir.write(tmp, graph)
+    mpath = manifest_path(out)
+    manifest.write(mpath)
+    return out, mpath
+
+
+def _check_graph(graph: Any, sizes: tuple[int, int], betas: list[float], thr: list[float]) -> None:
+    """The exported graph must be the expected chain with reset-to-zero LIF vectors."""
+    import nir
+
+    expected = {"input": nir.Input, "0": nir.Affine, "1": nir.LIF, "2": nir.Affine,
+                "3": nir.LIF, "4": nir.Affine, "output": nir.Output}  # fmt: skip
+    for name, kind in expected.items():
+        node = graph.nodes.get(name)
+        if not isinstance(node, kind):
+            raise ExportError(f"unexpected NIR graph from snntorch: node {name!r} is {node!r}")
+    for name, size, beta, th in (("1", sizes[0], betas[0], thr[0]), ("3", sizes[1], betas[1], thr[1])):
+        node = graph.nodes[name]
+        if node.tau.shape != (size,) or not np.all(node.v_reset == 0):
+            raise ExportError(f"NIR LIF {name}: expected {size} neurons resetting to 0")
+        beta_back = 1.0 - NIR_DT / node.tau
+        if not np.allclose(beta_back, beta, rtol=0, atol=1e-6) or not np.all(node.v_threshold == th):
+            raise ExportError(f"NIR LIF {name}: time constants or thresholds do not round-trip")
+        if not math.isfinite(float(np.max(node.tau))):
+            raise ExportError(f"NIR LIF {name}: infinite time constant (beta = 1)")
