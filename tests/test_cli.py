@@ -57,7 +57,7 @@ def test_cli_startup_does_not_import_heavy_packages(code: str) -> None:
     assert json.loads(result.stdout.strip().splitlines()[-1]) == []
 
 
-@pytest.mark.parametrize("command", ["export", "deploy", "report"])
+@pytest.mark.parametrize("command", ["deploy", "report"])
 def test_unimplemented_commands_exit_3(command: str) -> None:
     result = run(command, timeout=30)
     assert result.returncode == 3
