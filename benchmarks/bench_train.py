@@ -95,7 +95,7 @@ def sb3_run(iterations: int) -> dict[str, float]:
     )  # fmt: skip
     model = PPO(
         "MlpPolicy", venv, n_steps=256, batch_size=256, n_epochs=10, learning_rate=3e-4,
-        gamma=0.99, gae_lambda=0.95, clip_range=0.2, ent_coef=0.01, vf_coef=0.5,
+        gamma=0.995, gae_lambda=0.95, clip_range=0.2, ent_coef=0.01, vf_coef=0.5,
         max_grad_norm=0.5, seed=1, device="cpu", verbose=0,
         policy_kwargs={"net_arch": {"pi": [128, 128], "vf": [128, 128]}, "activation_fn": torch.nn.Tanh},
     )  # fmt: skip
