@@ -186,7 +186,9 @@ def replay(
 @app.command()
 def export(
     run_dir: Annotated[Path, typer.Argument(help="a training run of an SNN policy")],
-    nir_format: Annotated[bool, typer.Option("--nir", help="export to NIR (the only format)")] = False,
+    nir_format: Annotated[
+        bool, typer.Option("--nir", help="export to NIR (the only format)")
+    ] = False,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="NIR file to write")] = None,
     checkpoint: Annotated[Path | None, typer.Option(help="default: the run's latest")] = None,
 ) -> None:

@@ -46,8 +46,30 @@ def load_nir(path: str | Path) -> tuple[Any, Manifest]:
     try:
         graph = nir.read(path)
     except Exception as exc:  # h5py raises several types for truncated or foreign files
-        raise NIRFileError(f"{path}: not a readable NIR file ({type(exc).__name__}: {exc})") from exc
+        raise NIRFileError(
+            f"{path}: not a readable NIR file ({type(exc).__name__}: {exc})"
+        ) from exc
     return graph, manifest
+
+
+def _check_lif(source: Any, node: Any, layer: Any, size: int, dt: float) -> None:
+    """The graph's LIF node must be the manifest's layer: uniform, reset to 0, same values."""
+    tau = np.asarray(node.tau, dtype=np.float64)
+    thr = np.asarray(node.v_threshold, dtype=np.float64)
+    if tau.shape != (size,) or layer.size != size:
+        raise NIRFileError(
+            f"{source}: LIF node {layer.node} has {tau.shape} neurons, expected {size}"
+        )
+    if not np.all(np.asarray(node.v_reset) == 0):
+        raise NIRFileError(f"{source}: LIF node {layer.node} does not reset to 0")
+    beta = 1.0 - dt / tau
+    if np.ptp(beta) > 1e-6 or np.ptp(thr) > 0:
+        raise NIRFileError(f"{source}: LIF node {layer.node} has non-uniform decay or threshold")
+    if abs(beta[0] - layer.beta) > 1e-6 or thr[0] != layer.threshold:
+        raise NIRFileError(
+            f"{source}: LIF node {layer.node} (beta {beta[0]:.6f}, threshold {thr[0]}) does not "
+            f"match the manifest (beta {layer.beta:.6f}, threshold {layer.threshold})"
+        )
 
 
 class NIRReference:
@@ -64,7 +86,9 @@ class NIRReference:
         try:
             fc1, lif1, fc2, lif2, out = (nodes[k] for k in ("0", "1", "2", "3", "4"))
         except KeyError as exc:
-            raise NIRFileError(f"{nir_path}: node {exc} missing; not an snnkart policy graph") from exc
+            raise NIRFileError(
+                f"{nir_path}: node {exc} missing; not an snnkart policy graph"
+            ) from exc
         f32 = np.float32
         self.w = [np.asarray(n.weight, f32) for n in (fc1, fc2, out)]
         self.b = [np.asarray(n.bias, f32) for n in (fc1, fc2, out)]
@@ -76,13 +100,14 @@ class NIRReference:
                 f"{nir_path}: the graph takes {self.w[0].shape[1]} inputs but the manifest's "
                 f"observation has {m.obs_dim}"
             )
+        for lif, layer, fc in ((lif1, m.layers[0], fc1), (lif2, m.layers[1], fc2)):
+            _check_lif(nir_path, lif, layer, fc.weight.shape[0], m.nir_dt)
         self.beta = [f32(layer.beta) for layer in m.layers]
         self.threshold = [f32(layer.threshold) for layer in m.layers]
         self.mean = np.asarray(m.obs_mean)
         self.std = np.asarray(m.obs_std)
         self.T = m.num_steps
         self.counts = SpikeCounts()
-        del lif1, lif2
 
     def reset(self) -> None:
         pass

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from snnkart.io import atomic_path
 from snnkart.export.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
+from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import spec_hash, versions
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.run import LoadedRun
@@ -51,9 +51,11 @@ def check_exportable(policy: Any) -> None:
         )
     for name in ("lif1", "lif2"):
         lif = getattr(policy.snn, name)
-        if lif.reset_mechanism != "zero":
+        # The buffer, not the string attribute, is what forward() uses and a state dict sets.
+        if int(lif.reset_mechanism_val) != 1:
+            mechanism = {0: "subtract", 1: "zero", 2: "none"}.get(int(lif.reset_mechanism_val))
             raise ExportError(
-                f"{name} uses reset_mechanism={lif.reset_mechanism!r}; Lava's LIF can only reset "
+                f"{name} uses reset_mechanism={mechanism!r}; Lava's LIF can only reset "
                 "the membrane to zero (NIR v_reset = 0); retrain with reset to zero"
             )
         beta = lif.beta.detach().reshape(-1)
@@ -84,7 +86,9 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
     assert isinstance(policy, SNNPolicy)
     actor = policy.snn
     sizes = (actor.fc1.out_features, actor.fc2.out_features)
-    betas = [float(lif.beta.detach().reshape(-1)[0].clamp(0, 1)) for lif in (actor.lif1, actor.lif2)]
+    betas = [
+        float(lif.beta.detach().reshape(-1)[0].clamp(0, 1)) for lif in (actor.lif1, actor.lif2)
+    ]
     thresholds = [float(lif.threshold.detach().reshape(-1)[0]) for lif in (actor.lif1, actor.lif2)]
     net = torch.nn.Sequential(
         actor.fc1,
@@ -121,8 +125,11 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
         action_mode=cfg.action_mode,
         env={**spec, "env_spec_hash": spec_hash(spec)},
         versions=versions(),
-        training={"run": str(run.run_dir), "checkpoint": str(run.checkpoint),
-                  "global_step": run.meta.get("global_step")},  # fmt: skip
+        training={
+            "run": str(run.run_dir),
+            "checkpoint": str(run.checkpoint),
+            "global_step": run.meta.get("global_step"),
+        },  # fmt: skip
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
@@ -142,12 +149,17 @@ def _check_graph(graph: Any, sizes: tuple[int, int], betas: list[float], thr: li
         node = graph.nodes.get(name)
         if not isinstance(node, kind):
             raise ExportError(f"unexpected NIR graph from snntorch: node {name!r} is {node!r}")
-    for name, size, beta, th in (("1", sizes[0], betas[0], thr[0]), ("3", sizes[1], betas[1], thr[1])):
+    for name, size, beta, th in (
+        ("1", sizes[0], betas[0], thr[0]),
+        ("3", sizes[1], betas[1], thr[1]),
+    ):
         node = graph.nodes[name]
         if node.tau.shape != (size,) or not np.all(node.v_reset == 0):
             raise ExportError(f"NIR LIF {name}: expected {size} neurons resetting to 0")
         beta_back = 1.0 - NIR_DT / node.tau
-        if not np.allclose(beta_back, beta, rtol=0, atol=1e-6) or not np.all(node.v_threshold == th):
+        if not np.allclose(beta_back, beta, rtol=0, atol=1e-6) or not np.all(
+            node.v_threshold == th
+        ):
             raise ExportError(f"NIR LIF {name}: time constants or thresholds do not round-trip")
         if not math.isfinite(float(np.max(node.tau))):
             raise ExportError(f"NIR LIF {name}: infinite time constant (beta = 1)")
