@@ -129,7 +129,7 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
             "run": str(run.run_dir),
             "checkpoint": str(run.checkpoint),
             "global_step": run.meta.get("global_step"),
-        },  # fmt: skip
+        },
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
