@@ -142,8 +142,8 @@ def run_eval(
 def run_replay(run_dir: Path, mode: str, out: Path | None, every: int) -> None:
     from snnkart.envs.render import Renderer
     from snnkart.replay import frames, load_ghosts
+    from snnkart.rl.config import read_run_config
     from snnkart.rl.ppo import make_env
-    from snnkart.rl.run import read_run_config
     from snnkart.video import check_video_path, video_writer
 
     if every < 1:

@@ -64,6 +64,22 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         "render_fps": RENDER_FPS,
     }
     config_class: ClassVar[type[EnvConfig]] = EnvConfig
+    # Per-episode state, set by _reset_state() and reset().
+    _x: float
+    _y: float
+    _heading: float
+    _next_cp: int
+    _finished: bool
+    _passed_this_step: int
+    _touched_wall: bool
+    _steps: int
+    _still_steps: int
+    _anchor: tuple[float, float]
+    _checkpoint_times: list[float]
+    _needs_reset: bool
+    _last_action: Any
+    _last_terms: dict[str, float]
+    _episode_return: float
     env_name: ClassVar[str] = "kart"
     egocentric: ClassVar[bool] = True
 
@@ -128,21 +144,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self.action_space = self._make_action_space()
 
         self._build_world()
-        self._x, self._y = self.track.spawn_position
-        self._heading = 0.0
-        self._next_cp = 0
-        self._finished = False
-        self._passed_this_step = 0
-        self._touched_wall = False
-        self._steps = 0
-        self._still_steps = 0
         self._still_radius = self.config.reward.stand_still_radius_m * PIXELS_PER_METRE
-        self._anchor = self.track.spawn_position
-        self._checkpoint_times: list[float] = []
-        self._needs_reset = True
-        self._last_action: Any = None
-        self._last_terms: dict[str, float] = {}
-        self._episode_return = 0.0
         self._reset_state()
         self._reset_vehicle()
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
@@ -332,6 +334,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._touched_wall = False
         self._steps = 0
         self._still_steps = 0
+        self._anchor = self.track.spawn_position
         self._checkpoint_times = []
         self._needs_reset = True
         self._last_action = None

@@ -195,6 +195,16 @@ def load_config(
     return validate_config(data, source=str(path) if path else "command line")
 
 
+def read_run_config(run_dir: str | Path) -> TrainConfig:
+    """The resolved training config saved in a run directory."""
+    path = Path(run_dir) / "config.toml"
+    if not path.is_file():
+        raise ConfigError(
+            f"{run_dir} is not a run directory (no config.toml); pass the --out of a training run"
+        )
+    return validate_config(tomllib.loads(path.read_text()), str(path))
+
+
 def validate_config(data: dict[str, Any], source: str = "config") -> TrainConfig:
     try:
         return TrainConfig.model_validate(data)

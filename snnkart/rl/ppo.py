@@ -21,7 +21,6 @@ from __future__ import annotations
 import json
 import math
 import signal
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -44,13 +43,8 @@ from snnkart.rl.checkpoint import (
     save_checkpoint,
     spec_hash,
 )
-from snnkart.rl.config import TrainConfig, validate_config
+from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, build_policy
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 
 class RunError(RuntimeError):
@@ -148,7 +142,7 @@ class Trainer:
         if resume:
             if not config_path.is_file():
                 raise RunError(f"nothing to resume in {self.run_dir}: no config.toml there")
-            saved = validate_config(tomllib.loads(config_path.read_text()), str(config_path))
+            saved = read_run_config(self.run_dir)
             if cfg.total_steps != saved.total_steps:
                 saved = saved.model_copy(update={"total_steps": cfg.total_steps})
             cfg = saved

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -16,14 +15,9 @@ from snnkart.rl.checkpoint import (
     check_compatible,
     load_checkpoint,
 )
-from snnkart.rl.config import TrainConfig, validate_config
+from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic
 from snnkart.rl.ppo import make_env, policy_for
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 
 @dataclass
@@ -34,16 +28,6 @@ class LoadedRun:
     obs_rms: RunningMeanStd
     meta: dict[str, Any]
     checkpoint: Path
-
-
-def read_run_config(run_dir: str | Path) -> TrainConfig:
-    """The resolved training config of a run directory."""
-    config_path = Path(run_dir) / "config.toml"
-    if not config_path.is_file():
-        raise CheckpointError(
-            f"{run_dir} is not a run directory (no config.toml); pass the --out of a training run"
-        )
-    return validate_config(tomllib.loads(config_path.read_text()), str(config_path))
 
 
 def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> LoadedRun:
