@@ -79,8 +79,8 @@ class ActorCritic(nn.Module):
 
     def distribution(self, out: torch.Tensor) -> Categorical | Normal:
         if self.discrete:
-            return Categorical(logits=out)
-        return Normal(out, self.log_std.exp().expand_as(out))
+            return Categorical(logits=out, validate_args=False)
+        return Normal(out, self.log_std.exp().expand_as(out), validate_args=False)
 
     def forward(
         self,

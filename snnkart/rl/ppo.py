@@ -65,16 +65,38 @@ def compute_gae(
     truncated; truncations already carry their bootstrap in ``rewards[t]``). ``last_value`` is
     V of the observation after the last step. Returns (advantages, returns).
     """
-    steps = rewards.shape[0]
-    advantages = torch.zeros_like(rewards)
-    last_gae = torch.zeros_like(last_value)
-    for t in reversed(range(steps)):
-        next_value = last_value if t == steps - 1 else values[t + 1]
-        nonterminal = 1.0 - episode_end[t]
-        delta = rewards[t] + gamma * next_value * nonterminal - values[t]
-        last_gae = delta + gamma * gae_lambda * nonterminal * last_gae
-        advantages[t] = last_gae
+    # Small per-step arrays: numpy's scalar-loop overhead is far below torch's.
+    r, v, end = rewards.numpy(), values.numpy(), episode_end.numpy()
+    next_values = np.concatenate([v[1:], last_value.numpy()[None]], axis=0)
+    nonterminal = 1.0 - end
+    deltas = r + gamma * next_values * nonterminal - v
+    adv = np.zeros_like(r)
+    last_gae = np.zeros_like(r[0])
+    for t in reversed(range(r.shape[0])):
+        last_gae = deltas[t] + gamma * gae_lambda * nonterminal[t] * last_gae
+        adv[t] = last_gae
+    advantages = torch.from_numpy(adv)
     return advantages, advantages + values
+
+
+class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
+    """Pass on only what training reads, and only at episode ends.
+
+    The vector env merges every info key of every env on every step; the kart envs report a
+    dozen keys (a nested dict among them), which cost more than the env step itself.
+    """
+
+    KEYS = ("lap_finished", "crashed", "elapsed_time", "position")
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if terminated or truncated:
+            return obs, reward, terminated, truncated, {k: info[k] for k in self.KEYS}
+        return obs, reward, terminated, truncated, {}
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, _ = self.env.reset(**kwargs)
+        return obs, {}
 
 
 def make_env(cfg: TrainConfig, render_mode: str | None = None) -> gym.Env:
@@ -159,10 +181,11 @@ class Trainer:
 
         p = cfg.ppo
         self.envs = gym.vector.SyncVectorEnv(
-            [lambda: make_env(cfg)] * p.num_envs,
+            [lambda: EpisodeEndInfo(make_env(cfg))] * p.num_envs,
             autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
         )
-        self.env0: KartEnv = self.envs.envs[0].unwrapped  # type: ignore[assignment]
+        self.karts: list[KartEnv] = [e.unwrapped for e in self.envs.envs]  # type: ignore[misc]
+        self.env0 = self.karts[0]
         self.spec = env_spec(self.env0)
         torch.manual_seed(cfg.seed)
         self.policy = policy_for(cfg, self.env0)
@@ -287,10 +310,12 @@ class Trainer:
                     next_raw, reward, terminated, truncated, info = self.envs.step(action)
                     reward = reward.astype(np.float64)
                     done = terminated | truncated
-                    positions[step] = np.asarray(
-                        [self._position(info, i) for i in range(E)], dtype=np.float32
-                    )
-                    ends[step] = done
+                    if cfg.run.trajectories:
+                        positions[step] = [
+                            info["final_info"]["position"][i] if done[i] else kart.position
+                            for i, kart in enumerate(self.karts)
+                        ]
+                        ends[step] = done
                     ep_return += reward
                     ep_length += 1
                     if truncated.any():
@@ -445,12 +470,6 @@ class Trainer:
         with torch.no_grad():
             values[idx] = self.policy.value(torch.from_numpy(norm)).numpy()
         return values
-
-    @staticmethod
-    def _position(info: dict[str, Any], i: int) -> tuple[float, float]:
-        if "final_info" in info and info.get("_final_info", np.zeros(0, bool))[i : i + 1].any():
-            return info["final_info"]["position"][i]
-        return info["position"][i]
 
     def _episode_end(
         self, info: dict[str, Any], i: int, ret: float, length: int, stats: IterationStats
