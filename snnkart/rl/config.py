@@ -90,6 +90,19 @@ POLICY_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
 }
 
 
+ENV_POLICY_DEFAULTS: dict[tuple[str, str], dict[str, dict[str, Any]]] = {
+    ("gazebo", "ann"): {"ppo": {"learning_rate": 1e-3}},
+}
+
+
+def _merge_defaults(data: dict[str, Any], defaults: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    for section, values in defaults.items():
+        given = data.get(section)
+        if not isinstance(given, BaseModel):
+            data = {**data, section: {**values, **(given or {})}}
+    return data
+
+
 class TrainConfig(BaseModel):
     """Everything that defines a training run."""
 
@@ -111,15 +124,19 @@ class TrainConfig(BaseModel):
     @model_validator(mode="before")
     @classmethod
     def _policy_defaults(cls, data: Any) -> Any:
-        """Defaults that differ by policy kind, applied only where the user set nothing."""
+        """Defaults that differ by policy kind (and env), applied only where the user set nothing."""
         if not isinstance(data, dict):
             return data
-        defaults = POLICY_DEFAULTS.get(str(data.get("policy", "snn")), {})
-        for section, values in defaults.items():
-            given = data.get(section)
-            if isinstance(given, BaseModel):
-                continue
-            data = {**data, section: {**values, **(given or {})}}
+        policy = str(data.get("policy", "snn"))
+        try:
+            env = resolve_env_name(str(data.get("env", "steer")))
+        except ValueError:
+            env = ""  # reported by the field validation below
+        for defaults in (
+            POLICY_DEFAULTS.get(policy, {}),
+            ENV_POLICY_DEFAULTS.get((env, policy), {}),
+        ):
+            data = _merge_defaults(data, defaults)
         return data
 
     @model_validator(mode="after")
