@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -90,28 +91,28 @@ def run_eval(
 
     if video is not None:
         check_video_path(video)
+        if render:
+            raise ValueError("choose either --render (a window) or --video (a file), not both")
     run = load_run(run_dir, checkpoint)
     mode = "human" if render else ("rgb_array" if video is not None else None)
     env = make_env(run.config, render_mode=mode)
     predictor = TorchPredictor(run, seed=seed)
-    with Progress(console=console, transient=True) as progress:
+    with contextlib.ExitStack() as stack:
+        stack.callback(env.close)
+        progress = stack.enter_context(Progress(console=console, transient=True))
         task = progress.add_task("evaluating", total=episodes)
-        writer_cm = video_writer(video, fps=RENDER_FPS / 2) if video is not None else None
-        writer = writer_cm.__enter__() if writer_cm is not None else None
-        try:
+        on_step = None
+        if video is not None:
+            writer = stack.enter_context(video_writer(video, fps=RENDER_FPS / 2))
 
             def on_step(e: Any) -> None:
-                if writer is not None and e.unwrapped.episode_steps % 2 == 0:
+                if e.unwrapped.episode_steps % 2 == 0:
                     writer.append_data(e.render())
 
-            results = run_episodes(
-                env, predictor, episodes, seed, on_step=on_step if writer else None,
-                on_episode=lambda r: progress.advance(task),
-            )  # fmt: skip
-        finally:
-            if writer_cm is not None:
-                writer_cm.__exit__(None, None, None)
-            env.close()
+        results = run_episodes(
+            env, predictor, episodes, seed, on_step=on_step,
+            on_episode=lambda r: progress.advance(task),
+        )  # fmt: skip
     summary = EvalSummary.of(results)
     path = out or run_dir / "eval.json"
     write_eval(
