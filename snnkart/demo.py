@@ -23,21 +23,17 @@ def scripted_gif(
     if every < 1:
         raise ValueError(f"every must be >= 1, got {every}")
     env = cast(KartEnv, make(env_name, track=track, render_mode="rgb_array").unwrapped)
-    frames = []
     try:
-        with Progress(transient=True) as progress:
+        with Progress(transient=True) as progress, video_writer(out, RENDER_FPS / every) as writer:
             task = progress.add_task(f"driving {env_name} on {track}", total=env.max_episode_steps)
 
-            def record(e: Any) -> None:
+            def record(e: KartEnv) -> None:
                 progress.advance(task)
-                if e._steps % every == 0:
-                    frames.append(e.render())
+                if e.episode_steps % every == 0:
+                    writer.append_data(e.render())
 
             result = drive_episode(env, seed=seed, driver=ScriptedDriver(env), on_step=record)
-            frames.append(env.render())
+            writer.append_data(env.render())
     finally:
         env.close()
-    with video_writer(out, fps=RENDER_FPS / every) as writer:
-        for frame in frames:
-            writer.append_data(frame)
     return result

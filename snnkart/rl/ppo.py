@@ -43,7 +43,7 @@ from snnkart.rl.checkpoint import (
     save_checkpoint,
     spec_hash,
 )
-from snnkart.rl.config import TrainConfig, read_run_config
+from snnkart.rl.config import PPOConfig, TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, build_policy
 
 
@@ -97,6 +97,13 @@ class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         obs, _ = self.env.reset(**kwargs)
         return obs, {}
+
+
+def normalize_obs(rms: RunningMeanStd, ppo: PPOConfig, raw: np.ndarray) -> np.ndarray:
+    """The float32 observation the critic and the ANN actor see (the policy's input)."""
+    if ppo.norm_obs:
+        return rms.normalize(raw, ppo.clip_obs)
+    return np.asarray(raw, dtype=np.float32)
 
 
 def make_env(cfg: TrainConfig, render_mode: str | None = None) -> gym.Env:
@@ -287,10 +294,7 @@ class Trainer:
                     self.progress.global_step += E
                     if p.norm_obs:
                         self.obs_rms.update(next_raw)
-                        norm = self.obs_rms.normalize(next_raw, p.clip_obs)
-                    else:
-                        norm = next_raw.astype(np.float32)
-                    obs_t = torch.from_numpy(norm)
+                    obs_t = torch.from_numpy(normalize_obs(self.obs_rms, p, next_raw))
                     raw_t = torch.from_numpy(np.asarray(next_raw, dtype=np.float32))
                     with torch.no_grad():
                         out = self.policy(obs_t, raw_t)
@@ -335,11 +339,7 @@ class Trainer:
 
                 # -- GAE -------------------------------------------------------------------
                 with torch.no_grad():
-                    last_norm = (
-                        self.obs_rms.normalize(next_raw, p.clip_obs)
-                        if p.norm_obs
-                        else next_raw.astype(np.float32)
-                    )
+                    last_norm = normalize_obs(self.obs_rms, p, next_raw)
                     last_value = self.policy.value(torch.from_numpy(last_norm))
                     advantages, returns = compute_gae(
                         rew_buf, val_buf, end_buf, last_value, p.gamma, p.gae_lambda
@@ -461,12 +461,8 @@ class Trainer:
         """V(final observation) for truncated envs, 0 elsewhere."""
         values = np.zeros(truncated.shape[0])
         idx = np.flatnonzero(truncated)
-        final = np.stack([info["final_obs"][i] for i in idx]).astype(np.float64)
-        norm = (
-            self.obs_rms.normalize(final, self.cfg.ppo.clip_obs)
-            if self.cfg.ppo.norm_obs
-            else final.astype(np.float32)
-        )
+        final = np.stack([info["final_obs"][i] for i in idx])
+        norm = normalize_obs(self.obs_rms, self.cfg.ppo, final)
         with torch.no_grad():
             values[idx] = self.policy.value(torch.from_numpy(norm)).numpy()
         return values

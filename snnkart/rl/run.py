@@ -17,7 +17,7 @@ from snnkart.rl.checkpoint import (
 )
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic
-from snnkart.rl.ppo import make_env, policy_for
+from snnkart.rl.ppo import make_env, normalize_obs, policy_for
 
 
 @dataclass
@@ -67,9 +67,8 @@ class TorchPredictor:
         pass
 
     def predict(self, obs: np.ndarray) -> Any:
-        p = self.run.config.ppo
         raw = np.asarray(obs, dtype=np.float32)[None]
-        norm = self.run.obs_rms.normalize(raw, p.clip_obs) if p.norm_obs else raw
+        norm = normalize_obs(self.run.obs_rms, self.run.config.ppo, raw)
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(self._next_seed())  # rate encoding draws from the global RNG
             action = self.policy.act_deterministic(torch.from_numpy(norm), torch.from_numpy(raw))
