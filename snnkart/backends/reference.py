@@ -1,24 +1,52 @@
-"""A small numpy executor of the exported NIR policy: the oracle the other backends are checked
+"""The numpy reference executor of an exported policy: the oracle every other backend is checked
 against. It reads only the ``.nir`` file and its manifest, never training code.
 
-Sharp edges (what it does not do yet): only the graph snnkart exports (Input -> Affine -> LIF ->
-Affine -> LIF -> Affine -> Output) with the ``current`` encoding runs; ``mode="float32"``
-follows torch's order of operations (per SNN step ``U = beta * U + I``, spike if
-``U - theta > 0``, reset to 0). The float64 Lava-order and the bit-accurate fixed-point modes
-arrive with the Lava backend.
+Three arithmetics (``mode``):
+
+- ``float32``: torch's order of operations, one logical window of T SNN steps per env step
+  starting from zero membranes: ``v = beta v + I``, spike if ``v - theta > 0``, reset to 0.
+  It differs from the torch policy only through matrix-multiply summation order (rare
+  threshold flips).
+- ``float64``: exactly what Lava's floating-point models compute (``PyLifResetModelFloat``,
+  ``PyDenseModelFloat``): float64, the bias added separately, and the Lava pipeline below.
+- ``fixed``: exactly what Lava's bit-accurate models compute (``PyLifResetModelBitAcc``,
+  ``PyDenseModelBitAcc``) on the quantised network (:mod:`snnkart.backends.quantize`):
+  24-bit state with wrap-around and saturation, decays truncated toward zero.
+
+The Lava pipeline: the first layer is fed by the host (its current, see
+:mod:`snnkart.backends.host`), each further layer through a Dense, and every Dense delays by
+one step. With L = layers - 1 Dense synapses, each env step is a window of ``W = T + L`` Lava
+steps; layer i is reset at window row i (``LIFReset(reset_interval=W, reset_offset=(i+1) % W)``,
+Lava's time starting at 1) and computes the policy's logical steps 0..T-1 at rows i..i+T-1.
+The other rows are the pipeline's fill and drain: their neuron updates and (bias-driven) spikes
+are counted apart as overhead, so the policy's own counts equal the float32 window's.
+
+Sharp edges: only feed-forward chains (:mod:`snnkart.backends.network`); the Lava arithmetics
+need snntorch-style layers (uniform beta and threshold, reset to 0, no leak term).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from snnkart.backends.host import HostCodec
+from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
+from snnkart.backends.quantize import (
+    ACT_SHIFT,
+    DECAY_UNITY,
+    UV_MAX,
+    FixedPointNetwork,
+    check_lava_compatible,
+    quantize,
+)
 from snnkart.export.manifest import Manifest, ManifestError, manifest_path
 
-REFERENCE_MODES = ("float32",)
+REFERENCE_MODES = ("float32", "float64", "fixed")
 
 
 class NIRFileError(ValueError):
@@ -27,12 +55,229 @@ class NIRFileError(ValueError):
 
 @dataclass
 class SpikeCounts:
-    """Per layer: spikes, synaptic operations (spikes x fan-out) and neuron updates."""
+    """Per layer: spikes, synaptic operations (spikes x fan-out) and neuron updates of the
+    policy's logical steps, and apart from them the pipeline's fill/drain overhead."""
 
-    spikes: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.int64))
-    synops: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.int64))
-    neuron_updates: np.ndarray = field(default_factory=lambda: np.zeros(2, dtype=np.int64))
+    n_layers: int = 2
+    spikes: np.ndarray = field(init=False)
+    synops: np.ndarray = field(init=False)
+    neuron_updates: np.ndarray = field(init=False)
+    overhead_spikes: np.ndarray = field(init=False)
+    overhead_synops: np.ndarray = field(init=False)
+    overhead_neuron_updates: np.ndarray = field(init=False)
     env_steps: int = 0
+
+    def __post_init__(self) -> None:
+        for name in (
+            "spikes", "synops", "neuron_updates",
+            "overhead_spikes", "overhead_synops", "overhead_neuron_updates",
+        ):  # fmt: skip
+            setattr(self, name, np.zeros(self.n_layers, dtype=np.int64))
+
+    def add(self, window: WindowResult, fan_out: tuple[int, ...]) -> None:
+        fan = np.asarray(fan_out, dtype=np.int64)
+        self.spikes += window.spikes
+        self.synops += window.spikes * fan
+        self.neuron_updates += window.neuron_updates
+        self.overhead_spikes += window.overhead_spikes
+        self.overhead_synops += window.overhead_spikes * fan
+        self.overhead_neuron_updates += window.overhead_neuron_updates
+        self.env_steps += 1
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "env_steps": self.env_steps,
+            "spikes": self.spikes.tolist(),
+            "synops": self.synops.tolist(),
+            "neuron_updates": self.neuron_updates.tolist(),
+            "pipeline_overhead": {
+                "spikes": self.overhead_spikes.tolist(),
+                "synops": self.overhead_synops.tolist(),
+                "neuron_updates": self.overhead_neuron_updates.tolist(),
+            },
+        }
+
+
+@dataclass
+class WindowResult:
+    """One env step: the raster of every Lava step in the window (``[rows, sum(sizes)]``,
+    rows = T for float32, T + L for the Lava arithmetics) and what it means."""
+
+    raster: np.ndarray
+    logical: np.ndarray  # [T, sum(sizes)] the policy's own steps, layer by layer
+    last_counts: np.ndarray  # [n_last] spikes of the last layer over the logical steps
+    spikes: np.ndarray  # per layer, logical steps
+    neuron_updates: np.ndarray
+    overhead_spikes: np.ndarray
+    overhead_neuron_updates: np.ndarray
+
+
+def split_window(raster: np.ndarray, sizes: tuple[int, ...], T: int) -> WindowResult:
+    """Separate a pipelined window (row i..i+T-1 are layer i's logical steps) into the policy's
+    steps and the fill/drain overhead. A float32 window (T rows) has no overhead."""
+    rows = raster.shape[0]
+    pipelined = rows != T
+    offsets = np.cumsum((0, *sizes))
+    logical = np.zeros((T, offsets[-1]), dtype=bool)
+    spikes, overhead = [], []
+    for i, n in enumerate(sizes):
+        cols = slice(offsets[i], offsets[i + 1])
+        shift = i if pipelined else 0
+        logical[:, cols] = raster[shift : shift + T, cols]
+        valid = int(logical[:, cols].sum())
+        spikes.append(valid)
+        overhead.append(int(raster[:, cols].sum()) - valid)
+    n = np.asarray(sizes, dtype=np.int64)
+    return WindowResult(
+        raster=raster,
+        logical=logical,
+        last_counts=logical[:, offsets[-2] :].sum(axis=0),
+        spikes=np.asarray(spikes, dtype=np.int64),
+        neuron_updates=n * T,
+        overhead_spikes=np.asarray(overhead, dtype=np.int64),
+        overhead_neuron_updates=n * (rows - T),
+    )
+
+
+class ChainSimulator:
+    """Executes a chain's spiking layers, one window per env step, in one arithmetic.
+
+    ``window(current)`` takes the first layer's input current ``[T, n1]`` (from
+    :class:`HostCodec`) and returns the raster of the window. The Lava arithmetics keep their
+    state across windows (Dense buffers, the Lava time step), as Lava does.
+    """
+
+    def __init__(
+        self,
+        chain: ChainNetwork,
+        num_steps: int,
+        mode: str,
+        fixed: FixedPointNetwork | None = None,
+    ) -> None:
+        if mode not in REFERENCE_MODES:
+            raise ValueError(f"unknown mode {mode!r}; choose one of {', '.join(REFERENCE_MODES)}")
+        self.chain = chain
+        self.mode = mode
+        self.T = num_steps
+        self.sizes = chain.sizes
+        K = len(self.sizes)
+        self.L = K - 1
+        self.W = num_steps + self.L
+        if mode == "float32":
+            f32 = np.float32
+            self.weights = [layer.weight for layer in chain.layers]
+            self.biases = [layer.bias for layer in chain.layers]
+            self.beta = [layer.beta.astype(f32) for layer in chain.layers]
+            self.gain = [layer.gain.astype(f32) for layer in chain.layers]
+            self.leak = [layer.leak.astype(f32) for layer in chain.layers]
+            self.theta = [layer.threshold.astype(f32) for layer in chain.layers]
+            self.v_reset = [layer.v_reset.astype(f32) for layer in chain.layers]
+            return
+        check_lava_compatible(chain)
+        self.t = 1  # Lava's first time step
+        self.u = [np.zeros(n) for n in self.sizes]
+        self.v = [np.zeros(n) for n in self.sizes]
+        if mode == "float64":
+            self.weights = [layer.weight.astype(np.float64) for layer in chain.layers]
+            # Lava float: u = u (1 - du) + a_in;  v = v (1 - dv) + u + bias  (du = 1)
+            self.du = 1.0
+            self.dv = [1.0 - float(layer.beta[0]) for layer in chain.layers]
+            self.vth = [float(layer.threshold[0]) for layer in chain.layers]
+            self.bias = [np.zeros(self.sizes[0])] + [
+                layer.bias.astype(np.float64) for layer in chain.layers[1:]
+            ]
+            self.buffers = [np.zeros(n) for n in self.sizes[1:]]
+        else:
+            self.fixed = fixed if fixed is not None else quantize(chain)
+            q = self.fixed.layers
+            self.u = [np.zeros(n, dtype=np.int64) for n in self.sizes]
+            self.v = [np.zeros(n, dtype=np.int64) for n in self.sizes]
+            self.qweights = [layer.weight for layer in q[1:]]
+            self.eff_bias = [layer.effective_bias for layer in q]
+            self.eff_vth = [layer.vth << ACT_SHIFT for layer in q]
+            self.decay_u = [DECAY_UNITY - (layer.du + 1) for layer in q]
+            self.decay_v = [DECAY_UNITY - layer.dv for layer in q]
+            self.buffers = [np.zeros(n, dtype=np.int64) for n in self.sizes[1:]]
+
+    # -- float32, torch order ---------------------------------------------------------------
+
+    def _window_float32(self, current: np.ndarray) -> np.ndarray:
+        T, offsets = self.T, np.cumsum((0, *self.sizes))
+        raster = np.zeros((T, offsets[-1]), dtype=bool)
+        v = [np.zeros(n, dtype=np.float32) for n in self.sizes]
+        for t in range(T):
+            s_prev: np.ndarray | None = None
+            for i in range(len(self.sizes)):
+                if i == 0:
+                    inp = current[t]
+                else:
+                    assert s_prev is not None
+                    inp = self.weights[i] @ s_prev.astype(np.float32) + self.biases[i]
+                if self.chain.layers[i].plain:
+                    v[i] = self.beta[i] * v[i] + inp
+                else:
+                    v[i] = self.beta[i] * v[i] + self.gain[i] * inp + self.leak[i]
+                s = v[i] - self.theta[i] > 0
+                v[i][s] = self.v_reset[i][s]
+                raster[t, offsets[i] : offsets[i + 1]] = s
+                s_prev = s
+        return raster
+
+    # -- Lava pipeline ------------------------------------------------------------------------
+
+    def _lif_float(self, i: int, a_in: np.ndarray) -> np.ndarray:
+        if self.t % self.W == (i + 1) % self.W:
+            self.u[i] *= 0
+            self.v[i] *= 0
+        self.u[i] = self.u[i] * (1 - self.du)
+        self.u[i] += a_in
+        self.v[i] = self.v[i] * (1 - self.dv[i]) + self.u[i] + self.bias[i]
+        s = self.v[i] > self.vth[i]
+        self.v[i][s] = 0
+        return s
+
+    def _lif_fixed(self, i: int, a_in: np.ndarray) -> np.ndarray:
+        if self.t % self.W == (i + 1) % self.W:
+            self.u[i] *= 0
+            self.v[i] *= 0
+        du = self.u[i] * self.decay_u[i]
+        u = np.sign(du) * np.right_shift(np.abs(du), 12) + np.left_shift(a_in, ACT_SHIFT)
+        u = np.where(u > UV_MAX, u - 2 * UV_MAX, u)
+        u = np.where(u <= -UV_MAX, u + 2 * UV_MAX, u)
+        self.u[i] = u
+        dv = self.v[i] * self.decay_v[i]
+        v = np.sign(dv) * np.right_shift(np.abs(dv), 12) + u + self.eff_bias[i]
+        v = np.clip(v, -UV_MAX + 1, UV_MAX - 1)
+        s = v > self.eff_vth[i]
+        v[s] = 0
+        self.v[i] = v
+        return s
+
+    def _window_lava(self, current: np.ndarray) -> np.ndarray:
+        K, T = len(self.sizes), self.T
+        offsets = np.cumsum((0, *self.sizes))
+        raster = np.zeros((self.W, offsets[-1]), dtype=bool)
+        lif = self._lif_float if self.mode == "float64" else self._lif_fixed
+        zero = np.zeros_like(current[0])
+        for r in range(self.W):
+            spikes = []
+            for i in range(K):
+                a_in = (current[r] if r < T else zero) if i == 0 else self.buffers[i - 1]
+                s = lif(i, a_in)
+                raster[r, offsets[i] : offsets[i + 1]] = s
+                spikes.append(s)
+            for i in range(1, K):  # each Dense sent its old buffer first, then integrates
+                w = self.weights[i] if self.mode == "float64" else self.qweights[i - 1]
+                self.buffers[i - 1] = w[:, spikes[i - 1]].sum(axis=1)
+            self.t += 1
+        return raster
+
+    def window(self, current: np.ndarray) -> np.ndarray:
+        if current.shape != (self.T, self.sizes[0]):
+            raise ValueError(f"current must be [T, n1] = {(self.T, self.sizes[0])}")
+        if self.mode == "float32":
+            return self._window_float32(current)
+        return self._window_lava(current)
 
 
 def load_nir(path: str | Path) -> tuple[Any, Manifest]:
@@ -52,95 +297,95 @@ def load_nir(path: str | Path) -> tuple[Any, Manifest]:
     return graph, manifest
 
 
-def _check_lif(source: Any, node: Any, layer: Any, size: int, dt: float) -> None:
-    """The graph's LIF node must be the manifest's layer: uniform, reset to 0, same values."""
-    tau = np.asarray(node.tau, dtype=np.float64)
-    thr = np.asarray(node.v_threshold, dtype=np.float64)
-    if tau.shape != (size,) or layer.size != size:
+def load_chain(path: str | Path) -> tuple[ChainNetwork, Manifest]:
+    """Read a policy's NIR file and manifest as a chain checked against the manifest. The
+    manifest's decays (the float32 values torch used) replace the ones derived from tau."""
+    graph, manifest = load_nir(path)
+    try:
+        chain = chain_from_graph(graph, manifest.nir_dt)
+    except UnsupportedGraphError as exc:
+        raise NIRFileError(f"{path}: {exc}") from exc
+    if chain.n_in != manifest.obs_dim:
         raise NIRFileError(
-            f"{source}: LIF node {layer.node} has {tau.shape} neurons, expected {size}"
+            f"{path}: the graph takes {chain.n_in} inputs but the manifest's observation has "
+            f"{manifest.obs_dim}"
         )
-    if not np.all(np.asarray(node.v_reset) == 0):
-        raise NIRFileError(f"{source}: LIF node {layer.node} does not reset to 0")
-    beta = 1.0 - dt / tau
-    if np.ptp(beta) > 1e-6 or np.ptp(thr) > 0:
-        raise NIRFileError(f"{source}: LIF node {layer.node} has non-uniform decay or threshold")
-    if abs(beta[0] - layer.beta) > 1e-6 or thr[0] != layer.threshold:
+    if len(chain.layers) != len(manifest.layers):
         raise NIRFileError(
-            f"{source}: LIF node {layer.node} (beta {beta[0]:.6f}, threshold {thr[0]}) does not "
-            f"match the manifest (beta {layer.beta:.6f}, threshold {layer.threshold})"
+            f"{path}: the graph has {len(chain.layers)} spiking layers, the manifest "
+            f"{len(manifest.layers)}"
         )
+    layers = []
+    for layer, spec in zip(chain.layers, manifest.layers):
+        if layer.neuron != spec.node or layer.size != spec.size:
+            raise NIRFileError(
+                f"{path}: LIF node {layer.neuron!r} ({layer.size} neurons) does not match the "
+                f"manifest's layer {spec.node!r} ({spec.size})"
+            )
+        if np.any(layer.v_reset != 0):
+            raise NIRFileError(f"{path}: LIF node {spec.node} does not reset to 0")
+        if np.ptp(layer.beta) > 1e-6 or np.ptp(layer.threshold) > 0:
+            raise NIRFileError(f"{path}: LIF node {spec.node} has non-uniform decay or threshold")
+        if abs(layer.beta[0] - spec.beta) > 1e-6 or layer.threshold[0] != spec.threshold:
+            raise NIRFileError(
+                f"{path}: LIF node {spec.node} (beta {layer.beta[0]:.6f}, threshold "
+                f"{layer.threshold[0]}) does not match the manifest (beta {spec.beta:.6f}, "
+                f"threshold {spec.threshold})"
+            )
+        layers.append(dataclasses.replace(layer, beta=np.full(layer.size, spec.beta)))
+    if manifest.readout_node and chain.readout_node != manifest.readout_node:
+        raise NIRFileError(f"{path}: readout node {chain.readout_node!r} is not the manifest's")
+    return dataclasses.replace(chain, layers=tuple(layers)), manifest
 
 
 class NIRReference:
-    """Predictor running the NIR graph in numpy; counts spikes per layer per logical step."""
+    """Predictor running an exported policy in numpy; counts spikes per layer per logical step.
 
-    def __init__(self, nir_path: str | Path, mode: str = "float32") -> None:
+    ``step(obs)`` returns the window (raster, counts) and the action; ``predict`` the action.
+    """
+
+    def __init__(self, nir_path: str | Path, mode: str = "float32", seed: int = 0) -> None:
         if mode not in REFERENCE_MODES:
             raise ValueError(f"unknown mode {mode!r}; choose one of {', '.join(REFERENCE_MODES)}")
-        graph, self.manifest = load_nir(nir_path)
-        m = self.manifest
-        if m.encoding != "current":
-            raise ManifestError(f"{nir_path}: the reference runs the current encoding only")
-        nodes = graph.nodes
-        try:
-            fc1, lif1, fc2, lif2, out = (nodes[k] for k in ("0", "1", "2", "3", "4"))
-        except KeyError as exc:
-            raise NIRFileError(
-                f"{nir_path}: node {exc} missing; not an snnkart policy graph"
-            ) from exc
-        f32 = np.float32
-        self.w = [np.asarray(n.weight, f32) for n in (fc1, fc2, out)]
-        self.b = [np.asarray(n.bias, f32) for n in (fc1, fc2, out)]
-        for arr in (*self.w, *self.b):
-            if not np.isfinite(arr).all():
-                raise NIRFileError(f"{nir_path}: NaN or infinite weights")
-        if self.w[0].shape[1] != m.obs_dim:
-            raise NIRFileError(
-                f"{nir_path}: the graph takes {self.w[0].shape[1]} inputs but the manifest's "
-                f"observation has {m.obs_dim}"
-            )
-        for lif, layer, fc in ((lif1, m.layers[0], fc1), (lif2, m.layers[1], fc2)):
-            _check_lif(nir_path, lif, layer, fc.weight.shape[0], m.nir_dt)
-        self.beta = [f32(layer.beta) for layer in m.layers]
-        self.threshold = [f32(layer.threshold) for layer in m.layers]
-        self.mean = np.asarray(m.obs_mean)
-        self.std = np.asarray(m.obs_std)
-        self.T = m.num_steps
-        self.counts = SpikeCounts()
+        self.chain, self.manifest = load_chain(nir_path)
+        self.mode = mode
+        fixed = quantize(self.chain) if mode == "fixed" else None
+        self.fixed = fixed
+        self.codec = HostCodec(self.chain, self.manifest, mode, fixed, seed)
+        self.sim = ChainSimulator(self.chain, self.manifest.num_steps, mode, fixed)
+        self.T = self.manifest.num_steps
+        self.counts = SpikeCounts(len(self.chain.layers))
 
     def reset(self) -> None:
-        pass
+        """Nothing to forget: membranes are reset every env step (the Lava pipeline's state
+        carries on, as it does on Lava)."""
+
+    def step(self, obs: np.ndarray) -> tuple[WindowResult, np.ndarray]:
+        raster = self.sim.window(self.codec.encode(obs))
+        window = split_window(raster, self.chain.sizes, self.T)
+        self.counts.add(window, self.chain.fan_out)
+        return window, self.codec.readout(window.last_counts)
 
     def normalise(self, obs: np.ndarray) -> np.ndarray:
-        z = (np.asarray(obs, dtype=np.float64) - self.mean) / self.std
-        return np.clip(z, -self.manifest.obs_clip, self.manifest.obs_clip).astype(np.float32)
+        return self.codec.normalise(obs)
 
     def readout(self, obs: np.ndarray) -> np.ndarray:
         """The readout vector (logits or action means) for one observation."""
-        z = self.normalise(obs)
-        current1 = self.w[0] @ z + self.b[0]
-        u1 = np.zeros_like(current1)
-        u2 = np.zeros(self.w[1].shape[0], dtype=np.float32)
-        total2 = np.zeros_like(u2)
-        c = self.counts
-        for _ in range(self.T):
-            u1 = self.beta[0] * u1 + current1
-            s1 = u1 - self.threshold[0] > 0
-            u1[s1] = 0.0
-            u2 = self.beta[1] * u2 + (self.w[1] @ s1.astype(np.float32) + self.b[1])
-            s2 = u2 - self.threshold[1] > 0
-            u2[s2] = 0.0
-            total2 += s2
-            n1, n2 = int(s1.sum()), int(s2.sum())
-            c.spikes += (n1, n2)
-            c.synops += (n1 * self.w[1].shape[0], n2 * self.w[2].shape[0])
-            c.neuron_updates += (u1.size, u2.size)
-        c.env_steps += 1
-        return self.w[2] @ (total2 / np.float32(self.T)) + self.b[2]
+        return self.step(obs)[1]
 
     def predict(self, obs: np.ndarray) -> Any:
-        out = self.readout(obs)
-        if self.manifest.action_mode == "discrete":
-            return int(np.argmax(out))
-        return np.clip(out, -1.0, 1.0).astype(np.float32)
+        return self.codec.decode(self.readout(obs))
+
+
+__all__ = [
+    "REFERENCE_MODES",
+    "ChainSimulator",
+    "ManifestError",
+    "NIRFileError",
+    "NIRReference",
+    "SpikeCounts",
+    "WindowResult",
+    "load_chain",
+    "load_nir",
+    "split_window",
+]

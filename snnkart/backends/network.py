@@ -1,0 +1,227 @@
+"""A NIR graph as a chain of spiking layers: what every snnkart backend executes.
+
+Supported subset (anything else is refused with an error naming the node type):
+
+    Input -> [Scale] -> (Affine | Linear) -> (LIF | IF) -> ... -> (Affine | Linear) -> Output
+                                                            \\-> Output   (no readout)
+
+NIR nodes are continuous-time; the chain is discretised with the recorded ``dt`` by forward
+Euler, the convention of snntorch's exporter (``shared/reference/snn-nir-lava.md`` section 1.2):
+
+    LIF:  v <- beta * v + gain * I + leak,   beta = 1 - dt/tau, gain = dt*r/tau, leak = dt*v_leak/tau
+    IF:   v <- v + gain * I,                 gain = dt*r            (beta = 1)
+    spike = v > v_threshold (strict);  on spike v <- v_reset
+
+For snntorch exports (``r = tau/dt``, ``v_leak = 0``) gain is exactly 1 and leak exactly 0, and
+the update is ``v = beta v + I``, the trained neuron. The first layer's input current
+``W1 x + b1`` is what the host computes (current encoding) or what a Dense synapse delivers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+class UnsupportedGraphError(ValueError):
+    """The NIR graph uses a node type or a topology no snnkart backend runs."""
+
+
+@dataclass(frozen=True)
+class SpikingLayer:
+    """``I = W s + b`` feeding a population of (L)IF neurons; per-neuron float64 parameters."""
+
+    synapse: str  # NIR node name of the Affine/Linear
+    neuron: str  # NIR node name of the LIF/IF
+    weight: np.ndarray  # (n, m) float32 as stored
+    bias: np.ndarray  # (n,) float32 (zeros for Linear)
+    beta: np.ndarray  # (n,) float64
+    gain: np.ndarray  # (n,)
+    leak: np.ndarray  # (n,)
+    threshold: np.ndarray  # (n,)
+    v_reset: np.ndarray  # (n,)
+
+    @property
+    def size(self) -> int:
+        return int(self.weight.shape[0])
+
+    @property
+    def plain(self) -> bool:
+        """True when the update is exactly ``v = beta v + I`` (gain 1, no leak)."""
+        return bool(np.all(self.gain == 1.0) and np.all(self.leak == 0.0))
+
+
+@dataclass(frozen=True)
+class ChainNetwork:
+    """Input scaling, spiking layers in order, and an optional linear readout of spike rates."""
+
+    n_in: int
+    input_scale: np.ndarray | None
+    layers: tuple[SpikingLayer, ...]
+    readout_weight: np.ndarray | None  # (n_out, n_last) float32
+    readout_bias: np.ndarray | None
+    readout_node: str | None
+
+    @property
+    def sizes(self) -> tuple[int, ...]:
+        return tuple(layer.size for layer in self.layers)
+
+    @property
+    def n_out(self) -> int:
+        if self.readout_weight is None:
+            return self.layers[-1].size
+        return int(self.readout_weight.shape[0])
+
+    @property
+    def fan_out(self) -> tuple[int, ...]:
+        """Synapses each spike of a layer drives (next layer, or the readout)."""
+        nxt = [layer.size for layer in self.layers[1:]]
+        return (*nxt, self.n_out)
+
+
+def _array(node: Any, name: str, field: str) -> np.ndarray:
+    arr = np.asarray(getattr(node, field), dtype=np.float64)
+    if not np.isfinite(arr).all():
+        raise UnsupportedGraphError(f"node {name!r}: {field} contains NaN or infinite values")
+    return arr
+
+
+def _synapse(name: str, node: Any) -> tuple[np.ndarray, np.ndarray]:
+    import nir
+
+    weight = np.asarray(node.weight, dtype=np.float32)
+    if weight.ndim != 2:
+        raise UnsupportedGraphError(f"node {name!r}: weight must be a matrix, got {weight.shape}")
+    if isinstance(node, nir.Affine):
+        bias = np.asarray(node.bias, dtype=np.float32).reshape(-1)
+    else:
+        bias = np.zeros(weight.shape[0], dtype=np.float32)
+    if bias.shape != (weight.shape[0],):
+        raise UnsupportedGraphError(f"node {name!r}: bias shape {bias.shape} does not fit weight")
+    if not (np.isfinite(weight).all() and np.isfinite(bias).all()):
+        raise UnsupportedGraphError(f"node {name!r}: NaN or infinite weights")
+    return weight, bias
+
+
+def _neuron(name: str, node: Any, n: int, dt: float) -> dict[str, np.ndarray]:
+    import nir
+
+    thr = _array(node, name, "v_threshold").reshape(-1)
+    reset = _array(node, name, "v_reset").reshape(-1) if hasattr(node, "v_reset") else np.zeros(n)
+    r = _array(node, name, "r").reshape(-1)
+    if isinstance(node, nir.LIF):
+        tau = _array(node, name, "tau").reshape(-1)
+        if np.any(tau <= 0):
+            raise UnsupportedGraphError(f"node {name!r}: time constants must be positive")
+        v_leak = _array(node, name, "v_leak").reshape(-1)
+        beta = 1.0 - dt / tau
+        gain = dt * r / tau
+        leak = dt * v_leak / tau
+    else:  # IF
+        beta = np.ones(n)
+        gain = dt * r
+        leak = np.zeros(n)
+    params = {"beta": beta, "gain": gain, "leak": leak, "threshold": thr, "v_reset": reset}
+    for key, value in params.items():
+        if value.shape == (1,):
+            params[key] = np.full(n, value[0])
+        elif value.shape != (n,):
+            raise UnsupportedGraphError(
+                f"node {name!r}: {key} has shape {value.shape}, expected ({n},) to match the "
+                "synapse before it"
+            )
+    # Forward Euler gives exactly 1 and 0 for snntorch exports; avoid 0.9999999999 from dt*r/tau.
+    params["gain"] = np.where(np.isclose(params["gain"], 1.0, rtol=1e-9, atol=0), 1.0, params["gain"])
+    if np.any(params["beta"] < 0) or np.any(params["beta"] > 1):
+        raise UnsupportedGraphError(
+            f"node {name!r}: dt/tau outside [0, 1] (dt {dt}); the forward-Euler step is unstable"
+        )
+    return params
+
+
+def chain_from_graph(graph: Any, dt: float) -> ChainNetwork:
+    """Convert a NIR graph to a :class:`ChainNetwork`, refusing anything outside the subset."""
+    import nir
+
+    nodes = graph.nodes
+    succ: dict[str, list[str]] = {}
+    for src, dst in graph.edges:
+        succ.setdefault(src, []).append(dst)
+    supported = (nir.Input, nir.Output, nir.Affine, nir.Linear, nir.LIF, nir.IF, nir.Scale)
+    for name, node in nodes.items():
+        if not isinstance(node, supported):
+            raise UnsupportedGraphError(
+                f"node {name!r} is a {type(node).__name__}; supported node types are "
+                "Input, Output, Affine, Linear, LIF, IF and Scale (after the input)"
+            )
+    inputs = [k for k, n in nodes.items() if isinstance(n, nir.Input)]
+    if len(inputs) != 1:
+        raise UnsupportedGraphError(f"the graph must have exactly one Input node, found {inputs}")
+    order = [inputs[0]]
+    while True:
+        nxt = succ.get(order[-1], [])
+        if not nxt:
+            break
+        if len(nxt) > 1:
+            raise UnsupportedGraphError(
+                f"node {order[-1]!r} feeds {nxt}; only feed-forward chains are supported"
+            )
+        if nxt[0] in order:
+            raise UnsupportedGraphError(f"recurrent edge into {nxt[0]!r}; only chains run")
+        order.append(nxt[0])
+    if len(order) != len(nodes):
+        missing = sorted(set(nodes) - set(order))
+        raise UnsupportedGraphError(f"nodes {missing} are not on the chain from the input")
+    if not isinstance(nodes[order[-1]], nir.Output):
+        raise UnsupportedGraphError(f"the chain ends at {order[-1]!r}, not at an Output node")
+
+    body = order[1:-1]
+    n_in = int(np.prod(np.asarray(nodes[order[0]].input_type["input"])))
+    scale = None
+    if body and isinstance(nodes[body[0]], nir.Scale):
+        scale = _array(nodes[body[0]], body[0], "scale").reshape(-1)
+        body = body[1:]
+    layers: list[SpikingLayer] = []
+    readout: tuple[np.ndarray, np.ndarray, str] | None = None
+    i = 0
+    while i < len(body):
+        name = body[i]
+        node = nodes[name]
+        if not isinstance(node, (nir.Affine, nir.Linear)):
+            raise UnsupportedGraphError(
+                f"node {name!r} ({type(node).__name__}) where a synapse (Affine or Linear) was "
+                "expected; the chain must alternate synapse -> neuron"
+            )
+        weight, bias = _synapse(name, node)
+        expected_in = layers[-1].size if layers else n_in
+        if weight.shape[1] != expected_in:
+            raise UnsupportedGraphError(
+                f"node {name!r} takes {weight.shape[1]} inputs but receives {expected_in}"
+            )
+        if i + 1 == len(body):
+            readout = (weight, bias, name)
+            break
+        neuron_name = body[i + 1]
+        neuron = nodes[neuron_name]
+        if not isinstance(neuron, (nir.LIF, nir.IF)):
+            raise UnsupportedGraphError(
+                f"node {neuron_name!r} ({type(neuron).__name__}) follows synapse {name!r}; "
+                "expected LIF or IF"
+            )
+        params = _neuron(neuron_name, neuron, weight.shape[0], dt)
+        layers.append(SpikingLayer(name, neuron_name, weight, bias, **params))
+        i += 2
+    if not layers:
+        raise UnsupportedGraphError("the graph has no spiking layer (LIF or IF)")
+    if scale is not None and scale.shape not in ((1,), (n_in,)):
+        raise UnsupportedGraphError(f"Scale after the input has shape {scale.shape}")
+    return ChainNetwork(
+        n_in=n_in,
+        input_scale=scale,
+        layers=tuple(layers),
+        readout_weight=None if readout is None else readout[0],
+        readout_bias=None if readout is None else readout[1],
+        readout_node=None if readout is None else readout[2],
+    )

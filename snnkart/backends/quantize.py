@@ -1,0 +1,153 @@
+"""Post-training quantisation of a chain network to Lava's fixed-point (Loihi) LIF and Dense.
+
+Lava's bit-accurate models (``lava/proc/lif/models.py: PyLifResetModelBitAcc``,
+``lava/proc/dense/models.py: PyDenseModelBitAcc``) hold u and v in 24-bit integers, compare
+``v > vth << 6``, add synaptic input as ``a_in << 6`` and decay by ``(4096 - d) / 4096`` with
+truncation toward zero. The mapping, per spiking layer i with float parameters (W, b, beta, theta):
+
+- Layer 0 is fed by the host (current encoding: ``c = W0 z + b0`` computed once per env step;
+  rate encoding: once per SNN step). Its scale is ``S0 = VTH_HOST / theta0``; the host sends
+  ``round(c * S0)`` clipped to +-(2**17 - 1), which is exact in spike terms because any
+  current above ``theta`` fires every step and any negative current never fires.
+- Layers i >= 1 are fed through a Dense of 8-bit mixed-sign weights; Lava drops the LSB of
+  mixed-sign weights, so weights are rounded to even integers: ``S = 254 / max|W|``,
+  ``w = 2 round(W S / 2)``. The threshold is ``vth = round(theta S)`` and the bias
+  ``bias_mant * 2**bias_exp = round(b S 64)`` with the smallest ``bias_exp`` in 0..7 whose
+  13-bit mantissa holds it.
+- Decays: ``du = 4095`` (the current forgets everything each step, as snntorch's Leaky has no
+  synaptic current) and ``dv = round((1 - beta) 4096)``; the effective beta is ``1 - dv/4096``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from snnkart.backends.network import ChainNetwork, UnsupportedGraphError
+
+DECAY_UNITY = 4096
+"""Lava/Loihi decays are 12-bit: the state is multiplied by (4096 - d) / 4096."""
+ACT_SHIFT = 6
+"""Synaptic input and the threshold are MSB-aligned by 6 bits in the 24-bit state."""
+UV_MAX = 2**23
+"""u and v are 24-bit: u wraps around at +-2**23, v saturates at +-(2**23 - 1)."""
+VTH_MAX = 2**17 - 1
+"""vth is a 17-bit unsigned integer."""
+HOST_CURRENT_MAX = 2**17 - 1
+"""|host current| limit so ``a_in << 6`` stays inside the 24-bit current."""
+VTH_HOST = 4096
+"""Integer threshold of the host-fed layer: the host current's resolution is theta / 4096."""
+WEIGHT_MAX = 254
+"""Largest even 8-bit mixed-sign weight (Lava truncates odd mixed-sign weights)."""
+
+
+@dataclass(frozen=True)
+class FixedLayer:
+    """Integer parameters of one LIFReset population (and the Dense into it, if any)."""
+
+    scale: float  # float value 1.0 of this layer's input current = `scale` integer units
+    weight: np.ndarray | None  # (n, m) int64 even values in [-256, 254]; None for the host layer
+    bias_mant: np.ndarray  # (n,) int64 13-bit
+    bias_exp: int
+    vth: int
+    du: int
+    dv: int
+
+    @property
+    def effective_bias(self) -> np.ndarray:
+        """The bias added to v each step, in v units (Lava's ``scale_bias``)."""
+        return np.left_shift(self.bias_mant, self.bias_exp)
+
+
+@dataclass(frozen=True)
+class FixedPointNetwork:
+    layers: tuple[FixedLayer, ...]
+
+    def host_current(self, current: np.ndarray) -> np.ndarray:
+        """Quantise the host's float current into layer 0's integer ``a_in``."""
+        scaled = np.rint(np.asarray(current, dtype=np.float64) * self.layers[0].scale)
+        return np.clip(scaled, -HOST_CURRENT_MAX, HOST_CURRENT_MAX).astype(np.int64)
+
+    def describe(self) -> list[dict[str, object]]:
+        """A JSON-able summary of the quantisation, for the deploy report."""
+        out = []
+        for i, q in enumerate(self.layers):
+            out.append(
+                {
+                    "layer": i,
+                    "scale": q.scale,
+                    "vth": q.vth,
+                    "du": q.du,
+                    "dv": q.dv,
+                    "effective_beta": 1.0 - q.dv / DECAY_UNITY,
+                    "bias_exp": q.bias_exp,
+                    "weight_bits": None if q.weight is None else 8,
+                    "max_abs_weight": None if q.weight is None else int(np.abs(q.weight).max()),
+                }
+            )
+        return out
+
+
+def uniform(values: np.ndarray, what: str, node: str) -> float:
+    """The single value of a per-neuron vector that Lava needs to be uniform."""
+    values = np.asarray(values)
+    if values.size == 0 or np.ptp(values) > 0:
+        raise UnsupportedGraphError(
+            f"LIF node {node!r} has non-uniform {what}; Lava's LIF has one per population"
+        )
+    return float(values.reshape(-1)[0])
+
+
+def check_lava_compatible(chain: ChainNetwork) -> None:
+    """Refuse what Lava's LIF cannot run, naming the node and the reason."""
+    for layer in chain.layers:
+        uniform(layer.beta, "decay (tau)", layer.neuron)
+        theta = uniform(layer.threshold, "threshold", layer.neuron)
+        if np.any(layer.v_reset != 0):
+            raise UnsupportedGraphError(
+                f"LIF node {layer.neuron!r} resets to v_reset != 0; Lava's LIF resets to zero"
+            )
+        if not layer.plain:
+            raise UnsupportedGraphError(
+                f"LIF node {layer.neuron!r} has r != tau/dt or v_leak != 0; the Lava mapping "
+                "supports snntorch-style neurons (v = beta v + I)"
+            )
+        if not 0.0 <= layer.beta[0] < 1.0:
+            raise UnsupportedGraphError(
+                f"LIF node {layer.neuron!r}: beta {layer.beta[0]} is outside [0, 1)"
+            )
+        if theta <= 0:
+            raise UnsupportedGraphError(f"LIF node {layer.neuron!r}: threshold must be > 0")
+    if chain.input_scale is not None:
+        raise UnsupportedGraphError("a Scale node after the input is not mapped to Lava yet")
+
+
+def quantize(chain: ChainNetwork) -> FixedPointNetwork:
+    """Quantise ``chain`` (see the module docstring for the exact rules)."""
+    check_lava_compatible(chain)
+    layers = []
+    for i, layer in enumerate(chain.layers):
+        theta = float(layer.threshold[0])
+        dv = int(np.clip(np.rint((1.0 - float(layer.beta[0])) * DECAY_UNITY), 0, DECAY_UNITY - 1))
+        if i == 0:
+            scale = VTH_HOST / theta
+            layers.append(
+                FixedLayer(scale, None, np.zeros(layer.size, np.int64), 0, VTH_HOST, 4095, dv)
+            )
+            continue
+        w = layer.weight.astype(np.float64)
+        wmax = float(np.abs(w).max())
+        scale = WEIGHT_MAX / wmax if wmax > 0 else 1.0
+        vth = int(np.rint(theta * scale))
+        if vth > VTH_MAX:  # tiny weights against a large threshold: trade weight resolution
+            scale = VTH_MAX / theta
+            vth = VTH_MAX
+        weight = (2 * np.rint(w * scale / 2)).astype(np.int64)
+        target = np.rint(layer.bias.astype(np.float64) * scale * 2**ACT_SHIFT)
+        exp = 0
+        while exp < 7 and np.abs(np.rint(target / 2**exp)).max(initial=0) > 4095:
+            exp += 1
+        mant = np.clip(np.rint(target / 2**exp), -4096, 4095).astype(np.int64)
+        layers.append(FixedLayer(scale, weight, mant, exp, max(vth, 1), 4095, dv))
+    return FixedPointNetwork(tuple(layers))
