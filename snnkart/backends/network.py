@@ -132,8 +132,9 @@ def _neuron(name: str, node: Any, n: int, dt: float) -> dict[str, np.ndarray]:
                 f"node {name!r}: {key} has shape {value.shape}, expected ({n},) to match the "
                 "synapse before it"
             )
-    # Forward Euler gives exactly 1 and 0 for snntorch exports; avoid 0.9999999999 from dt*r/tau.
-    params["gain"] = np.where(np.isclose(params["gain"], 1.0, rtol=1e-9, atol=0), 1.0, params["gain"])
+    # snntorch writes r = tau/dt, so the gain is 1 up to float32 rounding of tau and r: snap it.
+    params["gain"] = np.where(np.abs(params["gain"] - 1.0) < 1e-6, 1.0, params["gain"])
+    params["leak"] = np.where(np.abs(params["leak"]) < 1e-12, 0.0, params["leak"])
     if np.any(params["beta"] < 0) or np.any(params["beta"] > 1):
         raise UnsupportedGraphError(
             f"node {name!r}: dt/tau outside [0, 1] (dt {dt}); the forward-Euler step is unstable"
