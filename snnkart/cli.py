@@ -146,18 +146,65 @@ def eval_(
     out: Annotated[
         Path | None, typer.Option(help="JSON results (default RUN_DIR/eval.json)")
     ] = None,
+    backend: Annotated[
+        str, typer.Option(help="torch (the trained network), nir-ref or lava-sim")
+    ] = "torch",
+    precision: Annotated[
+        str, typer.Option(help="nir-ref/lava-sim arithmetic (see `snnkart deploy`)")
+    ] = "fixed",
 ) -> None:
-    """Evaluate the deterministic policy with frozen normalisation; print and write JSON."""
+    """Evaluate the deterministic policy with frozen normalisation; print and write JSON.
+
+    With ``--backend nir-ref|lava-sim`` RUN_DIR may also be an exported ``policy.nir``; a run
+    directory is exported to NIR first."""
     from snnkart.rl.checkpoint import CheckpointError
     from snnkart.rl.config import ConfigError
     from snnkart.train_cli import run_eval
 
     if episodes < 1:
         _fail(f"--episodes must be >= 1, got {episodes}")
+    if backend != "torch":
+        _eval_exported(run_dir, backend, precision, episodes, seed, checkpoint, out)
+        return
+    if run_dir.suffix == ".nir":
+        _fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     try:
         run_eval(run_dir, episodes, seed, checkpoint, render, video, out)
     except (ConfigError, CheckpointError, ValueError) as exc:
         _fail(str(exc))
+
+
+def _eval_exported(
+    target: Path,
+    backend: str,
+    precision: str,
+    episodes: int,
+    seed: int,
+    checkpoint: Path | None,
+    out: Path | None,
+) -> None:
+    import tempfile
+
+    if backend not in ("nir-ref", "lava-sim"):
+        _fail(f"unknown backend {backend!r}; choose torch, nir-ref or lava-sim")
+    with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
+        if target.is_dir():
+            from snnkart.export.nir_export import ExportError, export_nir
+            from snnkart.rl.checkpoint import CheckpointError
+            from snnkart.rl.config import ConfigError
+            from snnkart.rl.run import load_run
+
+            try:
+                nir_file, _ = export_nir(load_run(target, checkpoint), Path(tmp) / "policy.nir")
+            except (ExportError, CheckpointError, ConfigError) as exc:
+                _fail(str(exc))
+            default_out = target / f"eval-{backend}-{precision}"
+        else:
+            nir_file = target
+            default_out = target.parent / f"eval-{backend}-{precision}"
+        _deploy_and_print(
+            nir_file, backend, precision, episodes, seed, None, None, out or default_out
+        )
 
 
 @app.command()
@@ -208,10 +255,68 @@ def export(
     typer.echo(f"NIR graph written to {nir_path}\nmanifest written to {manifest}")
 
 
+def _deploy_and_print(
+    nir_file: Path,
+    backend: str,
+    precision: str,
+    episodes: int,
+    seed: int,
+    env: str | None,
+    track: str | None,
+    out: Path | None,
+) -> dict[str, object]:
+    from rich.progress import Progress
+
+    from snnkart.backends.lava_sim import LavaBackendError
+    from snnkart.backends.network import UnsupportedGraphError
+    from snnkart.backends.reference import NIRFileError
+    from snnkart.deploy import DeployError, run_deploy, summary_lines
+    from snnkart.export.manifest import ManifestError
+
+    try:
+        with Progress(transient=True) as progress:
+            task = progress.add_task(f"{backend} episodes", total=episodes)
+            steps = progress.add_task("env steps", total=None)
+            record = run_deploy(
+                nir_file, backend, precision, episodes, seed, env, track, out,
+                on_episode=lambda r: progress.advance(task),
+                on_step=lambda e: progress.advance(steps),
+            )  # fmt: skip
+    except (
+        NIRFileError, ManifestError, DeployError, LavaBackendError, UnsupportedGraphError
+    ) as exc:  # fmt: skip
+        _fail(str(exc))
+    for line in summary_lines(record):
+        typer.echo(line)
+    if out is not None:
+        typer.echo(f"results written to {out / 'deploy.json'}")
+    return record
+
+
 @app.command()
-def deploy() -> None:
-    """Run an exported policy on a backend such as lava-sim (not implemented yet)."""
-    _not_yet("deploy", "Lava deployment arrives with the deployment issue")
+def deploy(
+    nir_file: Annotated[Path, typer.Argument(help="policy.nir (its manifest must be beside it)")],
+    backend: Annotated[str, typer.Option(help="lava-sim or nir-ref")] = "lava-sim",
+    precision: Annotated[
+        str,
+        typer.Option(help="lava-sim: fixed (bit-accurate Loihi) or float; nir-ref: float32, "
+                     "float64 or fixed"),
+    ] = "fixed",
+    env: Annotated[str | None, typer.Option("--env", "-e", help="default: the manifest's")] = None,
+    track: Annotated[
+        str | None, typer.Option("--track", "-t", help="default: the manifest's")
+    ] = None,
+    episodes: Annotated[int, typer.Option(help="number of seeded episodes")] = 10,
+    seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="directory for deploy.json")
+    ] = None,
+) -> None:
+    """Run an exported policy in closed loop on Lava's simulated Loihi (or the reference),
+    checked step by step against the numpy reference; print and write metrics and counts."""
+    if out is None:
+        out = nir_file.parent / f"deploy-{backend}-{precision}"
+    _deploy_and_print(nir_file, backend, precision, episodes, seed, env, track, out)
 
 
 @app.command()

@@ -1,0 +1,320 @@
+"""``snnkart deploy``: run an exported policy (``.nir`` + manifest) in closed loop on a backend,
+checking it step by step against the numpy reference, and write metrics, counts and parity.
+
+Backends: ``lava-sim`` (Lava's CPU-simulated Loihi, ``--precision float|fixed``) and
+``nir-ref`` (the numpy reference; ``float32``, or the Lava arithmetics ``float64|fixed``).
+Every env step of a Lava run is shadowed by two references on the same observation:
+
+- the same-arithmetic reference (float64 for Lava float, fixed for Lava fixed), which must
+  agree bit for bit: any differing window is counted and reported (it should be 0);
+- the float32 reference in torch's order (what the trained policy computes): the fraction of
+  identical actions and the spike flips per million neuron-steps measure what the backend's
+  arithmetic (float64, or the quantisation) changes.
+
+Only the two exported files are read, never the training code.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import platform
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from snnkart.backends.reference import NIRReference, SpikeCounts, WindowResult
+from snnkart.evaluate import EpisodeResult, EvalSummary, run_episodes
+from snnkart.export.manifest import Manifest, ManifestError
+from snnkart.io import atomic_path
+
+DEPLOY_SCHEMA = "snnkart/deploy/v1"
+BACKENDS = ("lava-sim", "nir-ref")
+
+
+class DeployError(ValueError):
+    """Bad deploy input: the message names the problem and what to do."""
+
+
+def make_policy_env(manifest: Manifest, env: str | None, track: str | None) -> Any:
+    """The env the manifest describes (optionally another track or env), checked to fit."""
+    from snnkart.envs import ENV_IDS, make, resolve_env_name
+    from snnkart.envs.tracks import TrackError
+
+    spec = manifest.env
+    name = env or spec.get("env")
+    if name is None:
+        raise DeployError("the manifest names no env; pass --env")
+    try:
+        resolved = resolve_env_name(str(name))
+    except ValueError as exc:
+        where = "--env" if env else "the manifest's env"
+        raise DeployError(f"{where}: {exc}") from exc
+    if resolved not in ENV_IDS:
+        raise DeployError(f"unknown env {name!r}")
+    kwargs: dict[str, Any] = {
+        "track": track or spec.get("track", "small_S"),
+        "action_mode": spec.get("action_mode", manifest.action_mode),
+    }
+    if spec.get("env_config") and resolved == spec.get("env"):
+        kwargs["config"] = spec["env_config"]
+    try:
+        gym_env = make(resolved, **kwargs)
+    except (TrackError, ValueError, TypeError) as exc:
+        raise DeployError(f"cannot make env {resolved!r}: {exc}") from exc
+    obs_dim = int(gym_env.observation_space.shape[0])
+    if obs_dim != manifest.obs_dim:
+        gym_env.close()
+        raise DeployError(
+            f"the policy takes {manifest.obs_dim} observation values but env {resolved!r} "
+            f"observes {obs_dim}; deploy it on the env it was trained on ({spec.get('env')})"
+        )
+    if spec.get("action_space") and str(gym_env.action_space) != spec["action_space"]:
+        gym_env.close()
+        raise DeployError(
+            f"the policy acts in {spec['action_space']} but env {resolved!r} expects "
+            f"{gym_env.action_space}"
+        )
+    return gym_env
+
+
+@dataclass
+class Parity:
+    """Running agreement of a backend with its references over the same observations."""
+
+    env_steps: int = 0
+    exact_reference: str | None = None
+    exact_mismatched_windows: int = 0
+    exact_mismatched_actions: int = 0
+    float32_action_agreement: int = 0
+    float32_spike_flips: int = 0
+    neuron_steps: int = 0
+    float32_count_differences: list[int] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        n = max(self.env_steps, 1)
+        return {
+            "env_steps": self.env_steps,
+            "same_arithmetic_reference": self.exact_reference,
+            "same_arithmetic_mismatched_windows": self.exact_mismatched_windows,
+            "same_arithmetic_mismatched_actions": self.exact_mismatched_actions,
+            "float32_identical_action_fraction": self.float32_action_agreement / n,
+            "float32_spike_flips": self.float32_spike_flips,
+            "float32_spike_flips_per_million_neuron_steps": (
+                1e6 * self.float32_spike_flips / max(self.neuron_steps, 1)
+            ),
+        }
+
+
+def _same_action(a: Any, b: Any) -> bool:
+    return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+
+
+class CheckedPredictor:
+    """Runs ``primary`` and, on the same observation, its references; returns primary's action."""
+
+    def __init__(
+        self,
+        primary: Any,
+        exact: NIRReference | None,
+        float32: NIRReference | None,
+    ) -> None:
+        self.primary = primary
+        self.exact = exact
+        self.float32 = float32
+        self.parity = Parity(exact_reference=None if exact is None else exact.mode)
+        self.step_seconds = 0.0
+
+    def reset(self) -> None:
+        self.primary.reset()
+
+    def predict(self, obs: np.ndarray) -> Any:
+        t0 = time.perf_counter()
+        window, out = self.primary.step(obs)
+        self.step_seconds += time.perf_counter() - t0
+        action = self.primary.codec.decode(out)
+        p = self.parity
+        p.env_steps += 1
+        if self.exact is not None:
+            ref_window, ref_out = self.exact.step(obs)
+            p.exact_mismatched_windows += not np.array_equal(window.raster, ref_window.raster)
+            p.exact_mismatched_actions += not _same_action(action, self.exact.codec.decode(ref_out))
+        if self.float32 is not None:
+            f_window, f_out = self.float32.step(obs)
+            p.float32_action_agreement += _same_action(action, self.float32.codec.decode(f_out))
+            p.float32_spike_flips += _flips(window, f_window)
+            p.neuron_steps += f_window.logical.size
+        return action
+
+
+def _flips(a: WindowResult, b: WindowResult) -> int:
+    return int(np.count_nonzero(a.logical != b.logical))
+
+
+def _counts_delta(now: SpikeCounts, before: dict[str, Any]) -> dict[str, Any]:
+    cur = now.as_dict()
+    out: dict[str, Any] = {"env_steps": cur["env_steps"] - before["env_steps"]}
+    for key in ("spikes", "synops", "neuron_updates"):
+        out[key] = [x - y for x, y in zip(cur[key], before[key])]
+    out["pipeline_overhead"] = {
+        key: [x - y for x, y in zip(cur["pipeline_overhead"][key], before["pipeline_overhead"][key])]
+        for key in cur["pipeline_overhead"]
+    }
+    return out
+
+
+def open_backend(
+    nir_path: Path, backend: str, precision: str, seed: int
+) -> tuple[Any, NIRReference | None, NIRReference | None]:
+    """The predictor for ``backend`` and its same-arithmetic and float32 references."""
+    if backend == "lava-sim":
+        from snnkart.backends.lava_sim import LavaSimPredictor
+
+        if precision not in ("float", "fixed"):
+            raise DeployError(f"--precision for lava-sim is float or fixed, not {precision!r}")
+        exact_mode = "float64" if precision == "float" else "fixed"
+        exact = NIRReference(nir_path, exact_mode, seed=seed)
+        float32 = NIRReference(nir_path, "float32", seed=seed)
+        return LavaSimPredictor(nir_path, precision, seed=seed), exact, float32
+    if backend == "nir-ref":
+        mode = {"float": "float64"}.get(precision, precision)
+        if mode not in ("float32", "float64", "fixed"):
+            raise DeployError(
+                f"--precision for nir-ref is float32, float64 (or float) or fixed, not {precision!r}"
+            )
+        float32 = None if mode == "float32" else NIRReference(nir_path, "float32", seed=seed)
+        return NIRReference(nir_path, mode, seed=seed), None, float32
+    raise DeployError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+
+
+def run_deploy(
+    nir_path: Path,
+    backend: str = "lava-sim",
+    precision: str = "fixed",
+    episodes: int = 10,
+    seed: int = 10_000,
+    env: str | None = None,
+    track: str | None = None,
+    out_dir: Path | None = None,
+    on_episode: Any = None,
+    on_step: Any = None,
+) -> dict[str, Any]:
+    """Run ``episodes`` seeded episodes; return (and write to ``out_dir/deploy.json``) the record."""
+    from snnkart.backends.reference import load_chain
+
+    if episodes < 1:
+        raise DeployError(f"--episodes must be >= 1, got {episodes}")
+    nir_path = Path(nir_path)
+    chain, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
+    gym_env = make_policy_env(manifest, env, track)
+    with contextlib.ExitStack() as stack:
+        stack.callback(gym_env.close)
+        t0 = time.perf_counter()
+        primary, exact, float32 = open_backend(nir_path, backend, precision, seed)
+        if hasattr(primary, "close"):
+            stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
+        startup = time.perf_counter() - t0
+        checked = CheckedPredictor(primary, exact, float32)
+        per_episode: list[dict[str, Any]] = []
+        before = primary.counts.as_dict()
+
+        def episode_done(result: EpisodeResult) -> None:
+            nonlocal before
+            per_episode.append({**asdict(result), "counts": _counts_delta(primary.counts, before)})
+            before = primary.counts.as_dict()
+            if on_episode is not None:
+                on_episode(result)
+
+        wall = time.perf_counter()
+        results = run_episodes(
+            gym_env, checked, episodes, seed, on_step=on_step, on_episode=episode_done
+        )
+        wall = time.perf_counter() - wall
+    summary = EvalSummary.of(results)
+    steps = checked.parity.env_steps
+    record = {
+        "schema": DEPLOY_SCHEMA,
+        "backend": backend,
+        "precision": precision if backend == "lava-sim" else getattr(primary, "mode", precision),
+        "nir_file": str(nir_path),
+        "manifest": {
+            "num_steps": manifest.num_steps,
+            "encoding": manifest.encoding,
+            "layers": [asdict(layer) for layer in manifest.layers],
+            "action_mode": manifest.action_mode,
+            "training": manifest.training,
+        },
+        "env": {
+            "env": gym_env.unwrapped.env_name,
+            "track": gym_env.unwrapped.track.name,
+            "action_mode": gym_env.unwrapped.action_mode,
+        },
+        "first_seed": seed,
+        "summary": asdict(summary),
+        "counts": primary.counts.as_dict(),
+        "counts_note": (
+            "spikes, synops (spikes x fan-out) and neuron_updates of the policy's T logical "
+            "SNN steps per env step; pipeline_overhead: the Lava pipeline's fill and drain steps "
+            "(L Dense delays per window), not part of the policy's computation"
+        ),
+        "parity": checked.parity.as_dict(),
+        "timing": {
+            "startup_s": startup,
+            "wall_s": wall,
+            "ms_per_env_step": 1000 * checked.step_seconds / max(steps, 1),
+        },
+        "quantization": None if getattr(primary, "fixed", None) is None else primary.fixed.describe(),
+        "machine": {"python": platform.python_version(), "machine": platform.machine()},
+        "versions": manifest.versions,
+        "episodes": per_episode,
+    }
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with atomic_path(out_dir / "deploy.json") as tmp:
+            tmp.write_text(json.dumps(record, indent=2) + "\n")
+    return record
+
+
+def summary_lines(record: dict[str, Any]) -> list[str]:
+    """What ``snnkart deploy`` prints."""
+    s, p, c, t = record["summary"], record["parity"], record["counts"], record["timing"]
+    n = max(c["env_steps"], 1)
+    lines = [
+        f"{record['backend']} ({record['precision']}) on {record['env']['env']}/"
+        f"{record['env']['track']}, {s['episodes']} episodes: success {s['success_rate']:.0%}, "
+        f"return {s['mean_return']:.2f}, crashes {s['crashes']}, time-outs {s['timeouts']}",
+    ]
+    if p["same_arithmetic_reference"] is not None:
+        lines.append(
+            f"parity vs numpy reference ({p['same_arithmetic_reference']}, same arithmetic): "
+            f"{p['same_arithmetic_mismatched_windows']} of {p['env_steps']} env steps differ "
+            f"(spike rasters), {p['same_arithmetic_mismatched_actions']} actions differ"
+        )
+    if p["env_steps"] and "float32_identical_action_fraction" in p:
+        lines.append(
+            f"agreement with the float32 policy (torch order): "
+            f"{p['float32_identical_action_fraction']:.2%} identical actions, "
+            f"{p['float32_spike_flips_per_million_neuron_steps']:.0f} spike flips per million "
+            "neuron-steps"
+        )
+    lines.append(
+        "per env step (policy): spikes "
+        + ", ".join(f"L{i}: {x / n:.1f}" for i, x in enumerate(c["spikes"]))
+        + "; synops "
+        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(c["synops"]))
+    )
+    o = c["pipeline_overhead"]
+    lines.append(
+        "pipeline overhead per env step (fill/drain, not the policy): spikes "
+        + ", ".join(f"L{i}: {x / n:.2f}" for i, x in enumerate(o["spikes"]))
+        + "; neuron updates "
+        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(o["neuron_updates"]))
+    )
+    lines.append(f"{t['ms_per_env_step']:.1f} ms per env step, start-up {t['startup_s']:.1f} s")
+    return lines
+
+
+__all__ = ["BACKENDS", "DeployError", "ManifestError", "run_deploy", "summary_lines"]
