@@ -71,25 +71,31 @@ def play(
 
 @app.command()
 def demo(
-    env: EnvOpt = "steer",
-    track: TrackOpt = "small_S",
-    out: Annotated[Path, typer.Option("--out", "-o", help="GIF to write")] = Path(
-        "runs/demo/scripted.gif"
+    out: Annotated[Path, typer.Option("--out", "-o", help="directory for everything")] = Path(
+        "runs/demo"
     ),
-    seed: int = 0,
-    every: Annotated[int, typer.Option(help="keep every n-th frame")] = 3,
+    steps: Annotated[int, typer.Option(help="training steps of the SNN")] = 300_000,
+    lava_episodes: Annotated[int, typer.Option(help="episodes on lava-sim (fixed)")] = 5,
+    scripted_gif: Annotated[
+        Path | None,
+        typer.Option(help="instead: render the scripted driver on steer/small_S to this GIF"),
+    ] = None,
 ) -> None:
-    """Render one episode of the scripted pure-pursuit driver to a GIF (no training)."""
-    name = _check_env_and_track(env, track)
-    from snnkart.demo import scripted_gif
+    """The main job: train a spiking policy on grid/small_S, export it to NIR and drive the kart
+    on Lava's simulated Loihi, printing success rates, parity numbers and where the files are."""
+    if scripted_gif is not None:
+        from snnkart.demo import scripted_gif as render_gif
 
-    result = scripted_gif(name, track, out, seed=seed, every=every)
-    status = "finished" if result["lap_finished"] else "did not finish"
-    typer.echo(
-        f"{name} on {track}: {status} in {result['length']} steps "
-        f"({result['elapsed_time']:.2f} s simulated), return {result['return']:.2f}"
-    )
-    typer.echo(f"GIF written to {out}")
+        result = render_gif("steer", "small_S", scripted_gif)
+        status = "finished" if result["lap_finished"] else "did not finish"
+        typer.echo(f"scripted driver on steer/small_S: {status}; GIF written to {scripted_gif}")
+        return
+    if steps < 1 or lava_episodes < 1:
+        _fail("--steps and --lava-episodes must be >= 1")
+    from snnkart.pipeline import run_pipeline
+
+    if run_pipeline(out, steps, lava_episodes) is None:
+        raise typer.Exit(130)
 
 
 @app.command()
@@ -299,8 +305,9 @@ def deploy(
     backend: Annotated[str, typer.Option(help="lava-sim or nir-ref")] = "lava-sim",
     precision: Annotated[
         str,
-        typer.Option(help="lava-sim: fixed (bit-accurate Loihi) or float; nir-ref: float32, "
-                     "float64 or fixed"),
+        typer.Option(
+            help="lava-sim: fixed (bit-accurate Loihi) or float; nir-ref: float32, float64 or fixed"
+        ),
     ] = "fixed",
     env: Annotated[str | None, typer.Option("--env", "-e", help="default: the manifest's")] = None,
     track: Annotated[

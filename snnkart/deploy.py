@@ -65,7 +65,7 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | None) -> A
         gym_env = make(resolved, **kwargs)
     except (TrackError, ValueError, TypeError) as exc:
         raise DeployError(f"cannot make env {resolved!r}: {exc}") from exc
-    obs_dim = int(gym_env.observation_space.shape[0])
+    obs_dim = int(np.prod(gym_env.observation_space.shape or (0,)))
     if obs_dim != manifest.obs_dim:
         gym_env.close()
         raise DeployError(
@@ -158,9 +158,14 @@ def _counts_delta(now: SpikeCounts, before: dict[str, Any]) -> dict[str, Any]:
     cur = now.as_dict()
     out: dict[str, Any] = {"env_steps": cur["env_steps"] - before["env_steps"]}
     for key in ("spikes", "synops", "neuron_updates"):
-        out[key] = [x - y for x, y in zip(cur[key], before[key])]
+        out[key] = [x - y for x, y in zip(cur[key], before[key], strict=True)]
     out["pipeline_overhead"] = {
-        key: [x - y for x, y in zip(cur["pipeline_overhead"][key], before["pipeline_overhead"][key])]
+        key: [
+            x - y
+            for x, y in zip(
+                cur["pipeline_overhead"][key], before["pipeline_overhead"][key], strict=True
+            )
+        ]
         for key in cur["pipeline_overhead"]
     }
     return out
@@ -185,8 +190,8 @@ def open_backend(
             raise DeployError(
                 f"--precision for nir-ref is float32, float64 (or float) or fixed, not {precision!r}"
             )
-        float32 = None if mode == "float32" else NIRReference(nir_path, "float32", seed=seed)
-        return NIRReference(nir_path, mode, seed=seed), None, float32
+        shadow = None if mode == "float32" else NIRReference(nir_path, "float32", seed=seed)
+        return NIRReference(nir_path, mode, seed=seed), None, shadow
     raise DeployError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
 
 
@@ -208,7 +213,7 @@ def run_deploy(
     if episodes < 1:
         raise DeployError(f"--episodes must be >= 1, got {episodes}")
     nir_path = Path(nir_path)
-    chain, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
+    _, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
     gym_env = make_policy_env(manifest, env, track)
     with contextlib.ExitStack() as stack:
         stack.callback(gym_env.close)
@@ -266,7 +271,9 @@ def run_deploy(
             "wall_s": wall,
             "ms_per_env_step": 1000 * checked.step_seconds / max(steps, 1),
         },
-        "quantization": None if getattr(primary, "fixed", None) is None else primary.fixed.describe(),
+        "quantization": None
+        if getattr(primary, "fixed", None) is None
+        else primary.fixed.describe(),
         "machine": {"python": platform.python_version(), "machine": platform.machine()},
         "versions": manifest.versions,
         "episodes": per_episode,

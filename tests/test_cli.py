@@ -57,7 +57,7 @@ def test_cli_startup_does_not_import_heavy_packages(code: str) -> None:
     assert json.loads(result.stdout.strip().splitlines()[-1]) == []
 
 
-@pytest.mark.parametrize("command", ["deploy", "report"])
+@pytest.mark.parametrize("command", ["report"])
 def test_unimplemented_commands_exit_3(command: str) -> None:
     result = run(command, timeout=30)
     assert result.returncode == 3
@@ -88,11 +88,11 @@ def test_play_unknown_track_names_it(tmp_path: Path) -> None:
     assert "Traceback" not in result.stderr
 
 
-def test_demo_writes_a_gif(tmp_path: Path) -> None:
+def test_demo_scripted_gif(tmp_path: Path) -> None:
     out = tmp_path / "tmp.gif"
-    result = run("demo", "-o", str(out), "--every", "10", timeout=120, cwd=tmp_path)
+    result = run("demo", "--scripted-gif", str(out), timeout=120, cwd=tmp_path)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert ": finished in" in result.stdout, result.stdout
+    assert ": finished;" in result.stdout, result.stdout
     assert str(out) in result.stdout
     assert out.is_file() and out.stat().st_size > 0
     assert out.read_bytes()[:6] in (b"GIF87a", b"GIF89a")

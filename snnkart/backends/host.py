@@ -26,7 +26,9 @@ from snnkart.backends.network import ChainNetwork
 from snnkart.backends.quantize import FixedPointNetwork
 from snnkart.export.manifest import Manifest
 
-RATE_RNG = "numpy.random.Generator(numpy.random.PCG64(seed)); u = rng.random((T, n_in)) per env step"
+RATE_RNG = (
+    "numpy.random.Generator(numpy.random.PCG64(seed)); u = rng.random((T, n_in)) per env step"
+)
 
 
 def rate_probabilities(obs: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:

@@ -30,7 +30,7 @@ import struct
 import sys
 import time
 import traceback
-from typing import Any, BinaryIO
+from typing import IO, Any
 
 import numpy as np
 
@@ -39,13 +39,13 @@ RECV_TIMEOUT = 60.0
 HEADER = struct.Struct("<Q")
 
 
-def write_msg(stream: BinaryIO, obj: Any) -> None:
+def write_msg(stream: IO[bytes], obj: Any) -> None:
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
     stream.write(HEADER.pack(len(data)) + data)
     stream.flush()
 
 
-def read_msg(stream: BinaryIO) -> Any:
+def read_msg(stream: IO[bytes]) -> Any:
     head = stream.read(HEADER.size)
     if len(head) < HEADER.size:
         raise EOFError

@@ -21,6 +21,7 @@ truncation toward zero. The mapping, per spiking layer i with float parameters (
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -69,7 +70,7 @@ class FixedPointNetwork:
         scaled = np.rint(np.asarray(current, dtype=np.float64) * self.layers[0].scale)
         return np.clip(scaled, -HOST_CURRENT_MAX, HOST_CURRENT_MAX).astype(np.int64)
 
-    def describe(self) -> list[dict[str, object]]:
+    def describe(self) -> list[dict[str, Any]]:
         """A JSON-able summary of the quantisation, for the deploy report."""
         out = []
         for i, q in enumerate(self.layers):

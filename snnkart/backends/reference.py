@@ -120,22 +120,22 @@ def split_window(raster: np.ndarray, sizes: tuple[int, ...], T: int) -> WindowRe
     offsets = np.cumsum((0, *sizes))
     logical = np.zeros((T, offsets[-1]), dtype=bool)
     spikes, overhead = [], []
-    for i, n in enumerate(sizes):
+    for i in range(len(sizes)):
         cols = slice(offsets[i], offsets[i + 1])
         shift = i if pipelined else 0
         logical[:, cols] = raster[shift : shift + T, cols]
         valid = int(logical[:, cols].sum())
         spikes.append(valid)
         overhead.append(int(raster[:, cols].sum()) - valid)
-    n = np.asarray(sizes, dtype=np.int64)
+    n_arr = np.asarray(sizes, dtype=np.int64)
     return WindowResult(
         raster=raster,
         logical=logical,
         last_counts=logical[:, offsets[-2] :].sum(axis=0),
         spikes=np.asarray(spikes, dtype=np.int64),
-        neuron_updates=n * T,
+        neuron_updates=n_arr * T,
         overhead_spikes=np.asarray(overhead, dtype=np.int64),
-        overhead_neuron_updates=n * (rows - T),
+        overhead_neuron_updates=n_arr * (rows - T),
     )
 
 
@@ -268,6 +268,7 @@ class ChainSimulator:
                 spikes.append(s)
             for i in range(1, K):  # each Dense sent its old buffer first, then integrates
                 w = self.weights[i] if self.mode == "float64" else self.qweights[i - 1]
+                assert w is not None
                 self.buffers[i - 1] = w[:, spikes[i - 1]].sum(axis=1)
             self.t += 1
         return raster
@@ -316,7 +317,7 @@ def load_chain(path: str | Path) -> tuple[ChainNetwork, Manifest]:
             f"{len(manifest.layers)}"
         )
     layers = []
-    for layer, spec in zip(chain.layers, manifest.layers):
+    for layer, spec in zip(chain.layers, manifest.layers, strict=True):
         if layer.neuron != spec.node or layer.size != spec.size:
             raise NIRFileError(
                 f"{path}: LIF node {layer.neuron!r} ({layer.size} neurons) does not match the "

@@ -34,8 +34,9 @@ MAX_LAYERS = 3
 class HostBridge(AbstractProcess):
     """Bridge for a chain of 1 to 3 LIF populations of ``sizes`` neurons."""
 
-    def __init__(self, *, sizes: tuple[int, ...], num_steps: int, buffer_size: int = 2,
-                 **kwargs: Any) -> None:
+    def __init__(
+        self, *, sizes: tuple[int, ...], num_steps: int, buffer_size: int = 2, **kwargs: Any
+    ) -> None:
         if not 1 <= len(sizes) <= MAX_LAYERS:
             raise ValueError(f"the bridge serves 1 to {MAX_LAYERS} layers, got {len(sizes)}")
         super().__init__(sizes=tuple(sizes), num_steps=num_steps, **kwargs)
