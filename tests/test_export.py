@@ -464,3 +464,43 @@ def test_cli_export_refuses_an_ann_run(runs: dict[str, Path], tmp_path: Path) ->
     assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
     assert "error:" in result.output and "only spiking policies" in result.output
     assert not out.exists()
+
+
+# -- rate encoding: one random-number contract for every backend ---------------------------------
+
+
+def test_rate_encoding_draws_the_same_spikes_in_torch_and_the_reference(tmp_path: Path) -> None:
+    cfg = load_config(
+        overrides={"env": "steer", "policy": "snn", "total_steps": 256, "track": "small_S"},
+        sets=[*TINY, "snn.encoding=rate"],
+    )
+    trainer = Trainer(cfg, tmp_path / "rate")
+    try:
+        trainer.train()
+    finally:
+        trainer.close()
+    run = load_run(tmp_path / "rate")
+    nir_path, mpath = export_nir(run, tmp_path / "rate.nir")
+    manifest = Manifest.read(mpath)
+    assert manifest.encoding == "rate" and "PCG64" in (manifest.encoding_rng or "")
+    torch_pred = TorchPredictor(run, seed=5)
+    reference = NIRReference(nir_path, "float32", seed=5)
+    other_seed = NIRReference(nir_path, "float32", seed=6)
+    env = make_env(run.config)
+    same = differs_with_other_seed = 0
+    try:
+        obs, _ = env.reset(seed=0)
+        for _ in range(300):
+            action = torch_pred.predict(obs)
+            same += action == reference.predict(obs)
+            drawn = reference.codec.last_input_spikes
+            other_seed.predict(obs)
+            assert drawn is not None and other_seed.codec.last_input_spikes is not None
+            differs_with_other_seed += not np.array_equal(drawn, other_seed.codec.last_input_spikes)
+            obs, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                obs, _ = env.reset()
+    finally:
+        env.close()
+    assert same >= 0.999 * 300, f"{same} of 300 actions agree"
+    assert differs_with_other_seed > 250  # the seed matters: the spikes are really random

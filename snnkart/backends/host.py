@@ -27,7 +27,9 @@ from snnkart.backends.quantize import FixedPointNetwork
 from snnkart.export.manifest import Manifest
 
 RATE_RNG = (
-    "numpy.random.Generator(numpy.random.PCG64(seed)); u = rng.random((T, n_in)) per env step"
+    "rng = numpy.random.Generator(numpy.random.PCG64(seed)), seed = the predictor's seed "
+    "(eval/deploy --seed), created once; per env step u = rng.random((T, n_in)) and "
+    "x[t] = u[t] < clip((obs - obs_low) / (obs_high - obs_low), 0, 1) in float32"
 )
 
 

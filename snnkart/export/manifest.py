@@ -52,6 +52,7 @@ class Manifest:
     env: dict[str, Any]
     versions: dict[str, str]
     training: dict[str, Any] = field(default_factory=dict)
+    encoding_rng: str | None = None  # rate encoding: how every backend draws the input spikes
 
     @property
     def obs_dim(self) -> int:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from snnkart.backends.host import RATE_RNG
 from snnkart.export.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import spec_hash, versions
@@ -125,6 +126,7 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
         action_mode=cfg.action_mode,
         env={**spec, "env_spec_hash": spec_hash(spec)},
         versions=versions(),
+        encoding_rng=RATE_RNG if cfg.snn.encoding == "rate" else None,
         training={
             "run": str(run.run_dir),
             "checkpoint": str(run.checkpoint),

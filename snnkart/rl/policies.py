@@ -101,8 +101,10 @@ class ActorCritic(nn.Module):
         return PolicyOutput(action, log_prob, entropy, self.value(obs), spikes, rates)
 
     @torch.no_grad()
-    def act_deterministic(self, obs: torch.Tensor, raw_obs: torch.Tensor) -> torch.Tensor:
-        out, _, _ = self.actor_output(obs, raw_obs, None)
+    def act_deterministic(
+        self, obs: torch.Tensor, raw_obs: torch.Tensor, input_spikes: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        out, _, _ = self.actor_output(obs, raw_obs, input_spikes)
         return out.argmax(-1) if self.discrete else out
 
     def clamp_parameters(self) -> None:
@@ -241,11 +243,13 @@ class SNNPolicy(ActorCritic):
         return out, input_spikes, rates
 
     @torch.no_grad()
-    def act_deterministic(self, obs: torch.Tensor, raw_obs: torch.Tensor) -> torch.Tensor:
+    def act_deterministic(
+        self, obs: torch.Tensor, raw_obs: torch.Tensor, input_spikes: torch.Tensor | None = None
+    ) -> torch.Tensor:
         was = self.training
         self.eval()
         try:
-            return super().act_deterministic(obs, raw_obs)
+            return super().act_deterministic(obs, raw_obs, input_spikes)
         finally:
             self.train(was)
 

@@ -16,7 +16,8 @@ from snnkart.rl.checkpoint import (
     load_checkpoint,
 )
 from snnkart.rl.config import TrainConfig, read_run_config
-from snnkart.rl.policies import ActorCritic
+from snnkart.backends.host import rate_probabilities, rate_spikes
+from snnkart.rl.policies import ActorCritic, SNNPolicy
 from snnkart.rl.ppo import make_env, normalize_obs, policy_for
 
 
@@ -61,6 +62,7 @@ class TorchPredictor:
         self.policy = run.policy
         self.seed = seed
         self.generator = torch.Generator().manual_seed(seed)
+        self.rng = np.random.Generator(np.random.PCG64(seed))
         self.discrete = run.policy.discrete
 
     def reset(self) -> None:
@@ -69,9 +71,18 @@ class TorchPredictor:
     def predict(self, obs: np.ndarray) -> Any:
         raw = np.asarray(obs, dtype=np.float32)[None]
         norm = normalize_obs(self.run.obs_rms, self.run.config.ppo, raw)
+        spikes = None
+        if isinstance(self.policy, SNNPolicy) and self.policy.cfg.encoding == "rate":
+            # The deployment contract (snnkart.backends.host): numpy PCG64 seeded once per
+            # predictor, one [T, n_in] draw per env step, so every backend sees these spikes.
+            low = self.policy.obs_low.numpy()
+            p = rate_probabilities(raw[0], low, low + self.policy.obs_span.numpy())
+            spikes = torch.from_numpy(rate_spikes(self.rng, p, self.policy.cfg.num_steps))[None]
         with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(self._next_seed())  # rate encoding draws from the global RNG
-            action = self.policy.act_deterministic(torch.from_numpy(norm), torch.from_numpy(raw))
+            torch.manual_seed(self._next_seed())
+            action = self.policy.act_deterministic(
+                torch.from_numpy(norm), torch.from_numpy(raw), spikes
+            )
         a = action[0].numpy()
         return int(a) if self.discrete else np.clip(a, -1.0, 1.0).astype(np.float32)
 
