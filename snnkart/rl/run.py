@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from snnkart.backends.host import rate_probabilities, rate_spikes
 from snnkart.rl.checkpoint import (
     CheckpointError,
     RunningMeanStd,
@@ -16,7 +17,6 @@ from snnkart.rl.checkpoint import (
     load_checkpoint,
 )
 from snnkart.rl.config import TrainConfig, read_run_config
-from snnkart.backends.host import rate_probabilities, rate_spikes
 from snnkart.rl.policies import ActorCritic, SNNPolicy
 from snnkart.rl.ppo import make_env, normalize_obs, policy_for
 
