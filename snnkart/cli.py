@@ -74,7 +74,7 @@ def demo(
     out: Annotated[Path, typer.Option("--out", "-o", help="directory for everything")] = Path(
         "runs/demo"
     ),
-    steps: Annotated[int, typer.Option(help="training steps of the SNN")] = 300_000,
+    steps: Annotated[int, typer.Option(help="training steps of the SNN")] = 400_000,
     lava_episodes: Annotated[int, typer.Option(help="episodes on lava-sim (fixed)")] = 5,
     scripted_gif: Annotated[
         Path | None,

@@ -3,8 +3,8 @@ with it on Lava's simulated Loihi, on built-in defaults.
 
 Steps, each writing into ``out`` (default ``runs/demo``) and skipped when already complete:
 
-1. ``snnkart train --env grid --track small_S --policy snn --steps 300000 --seed 1`` into
-   ``out/snn`` (resumable; about 3 minutes here).
+1. ``snnkart train --env grid --track small_S --policy snn --steps 400000 --seed 1`` into
+   ``out/snn`` (resumable; about 3 to 4 minutes here).
 2. Score the torch policy and the fixed-point reference (the bit-exact twin of Lava fixed) on the
    same 50 seeded episodes: the quantisation's effect on the success rate.
 3. ``snnkart export --nir`` to ``out/policy.nir`` (+ manifest).
@@ -26,7 +26,7 @@ from snnkart.io import atomic_path
 
 DEMO_ENV = "grid"
 DEMO_TRACK = "small_S"
-DEMO_STEPS = 300_000
+DEMO_STEPS = 400_000
 DEMO_SEED = 1
 QUANT_EPISODES = 50
 EVAL_SEED = 10_000

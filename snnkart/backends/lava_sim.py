@@ -228,5 +228,5 @@ class LavaSimPredictor:
         else:
             try:
                 self.close()
-            except LavaBackendError:
-                pass
+            except (LavaBackendError, subprocess.TimeoutExpired):
+                pass  # the worker was killed; the original error matters more

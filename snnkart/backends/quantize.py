@@ -39,6 +39,8 @@ HOST_CURRENT_MAX = 2**17 - 1
 """|host current| limit so ``a_in << 6`` stays inside the 24-bit current."""
 VTH_HOST = 4096
 """Integer threshold of the host-fed layer: the host current's resolution is theta / 4096."""
+BIAS_MAX = 4095 * 2**7
+"""Largest |bias_mant * 2**bias_exp| (13-bit signed mantissa, 3-bit exponent)."""
 WEIGHT_MAX = 254
 """Largest even 8-bit mixed-sign weight (Lava truncates odd mixed-sign weights)."""
 
@@ -143,12 +145,20 @@ def quantize(chain: ChainNetwork) -> FixedPointNetwork:
         vth = int(np.rint(theta * scale))
         if vth > VTH_MAX:  # tiny weights against a large threshold: trade weight resolution
             scale = VTH_MAX / theta
-            vth = VTH_MAX
+        bmax = float(np.abs(layer.bias.astype(np.float64)).max(initial=0.0))
+        if bmax * scale * 2**ACT_SHIFT > BIAS_MAX:  # a large bias: lower the scale to fit it
+            scale = BIAS_MAX / (bmax * 2**ACT_SHIFT)
+        vth = int(np.rint(theta * scale))
+        if vth < 1:
+            raise UnsupportedGraphError(
+                f"LIF node {layer.neuron!r}: its bias ({bmax:g}) is too large against its "
+                f"threshold ({theta:g}) for Loihi's 13-bit bias and 17-bit threshold"
+            )
         weight = (2 * np.rint(w * scale / 2)).astype(np.int64)
         target = np.rint(layer.bias.astype(np.float64) * scale * 2**ACT_SHIFT)
         exp = 0
         while exp < 7 and np.abs(np.rint(target / 2**exp)).max(initial=0) > 4095:
             exp += 1
-        mant = np.clip(np.rint(target / 2**exp), -4096, 4095).astype(np.int64)
-        layers.append(FixedLayer(scale, weight, mant, exp, max(vth, 1), 4095, dv))
+        mant = np.clip(np.rint(target / 2**exp), -4095, 4095).astype(np.int64)
+        layers.append(FixedLayer(scale, weight, mant, exp, vth, 4095, dv))
     return FixedPointNetwork(tuple(layers))
