@@ -18,13 +18,16 @@ Sharp edges: ``precision="fixed"`` runs the post-training quantisation of
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +42,24 @@ PRECISIONS = ("float", "fixed")
 STARTUP_TIMEOUT = 120.0
 WINDOW_TIMEOUT = 90.0
 CLOSE_TIMEOUT = 15.0
+
+
+@contextlib.contextmanager
+def _sigint_deferred() -> Iterator[None]:
+    """Hold Ctrl-C until one request/reply exchange with the worker is complete, so an
+    interrupt never leaves half a message in the pipe (the close that follows would then read
+    garbage and wait); the KeyboardInterrupt is raised right after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    hits: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: hits.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
+        if hits:
+            raise KeyboardInterrupt
 
 
 class LavaBackendError(RuntimeError):
@@ -151,8 +172,9 @@ class LavaWorker:
         return kind, payload
 
     def window(self, current: np.ndarray) -> np.ndarray:
-        self._send(("window", current))
-        kind, raster = self._recv(WINDOW_TIMEOUT)
+        with _sigint_deferred():
+            self._send(("window", current))
+            kind, raster = self._recv(WINDOW_TIMEOUT)
         if kind != "raster":
             raise LavaBackendError(f"Lava worker: unexpected reply {kind!r}")
         return np.asarray(raster, dtype=bool)
@@ -164,9 +186,10 @@ class LavaWorker:
         self.closed = True
         try:
             if self.proc.poll() is None:
-                self._send(("close",))
-                self._recv(CLOSE_TIMEOUT)
-                self.proc.wait(timeout=CLOSE_TIMEOUT)
+                with _sigint_deferred():
+                    self._send(("close",))
+                    self._recv(CLOSE_TIMEOUT)
+                    self.proc.wait(timeout=CLOSE_TIMEOUT)
         except (LavaBackendError, subprocess.TimeoutExpired):
             self.kill()
             raise
