@@ -23,6 +23,7 @@ import nir
 import numpy as np
 import pytest
 import torch
+from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
 from snnkart.backends.lava_sim import LavaSimPredictor
@@ -46,18 +47,10 @@ from snnkart.cli import app
 from snnkart.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
 from snnkart.export.manifest import manifest_path
 from snnkart.export.nir_export import export_nir
-from snnkart.rl.config import load_config
 from snnkart.rl.policies import SNNPolicy
-from snnkart.rl.ppo import Trainer, make_env, normalize_obs
+from snnkart.rl.ppo import make_env, normalize_obs
 from snnkart.rl.run import LoadedRun, TorchPredictor, load_run
 
-TINY = [
-    "ppo.num_envs=2",
-    "ppo.num_steps=128",
-    "ppo.update_epochs=1",
-    "ppo.num_minibatches=2",
-    "run.tensorboard=false",
-]
 RUNS = {
     "steer": ("steer", "snn", "discrete"),
     "steer-continuous": ("steer", "snn", "continuous"),
@@ -65,25 +58,6 @@ RUNS = {
 PARITY_STEPS = 300
 TORCH_STEPS = 200
 SUBPROCESS_ENV = {**os.environ, "SDL_VIDEODRIVER": "dummy", "COLUMNS": "200", "NO_COLOR": "1"}
-
-
-def _train(run_dir: Path, env: str, policy: str, action_mode: str) -> Path:
-    cfg = load_config(
-        overrides={
-            "env": env,
-            "policy": policy,
-            "total_steps": 512,
-            "action_mode": action_mode,
-            "track": "small_S",
-        },
-        sets=TINY,
-    )
-    trainer = Trainer(cfg, run_dir)
-    try:
-        trainer.train()
-    finally:
-        trainer.close()
-    return run_dir
 
 
 def _excite(run: LoadedRun) -> LoadedRun:
@@ -102,7 +76,7 @@ def _excite(run: LoadedRun) -> LoadedRun:
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Tiny trained runs (512 env steps each), trained once for the module."""
     base = tmp_path_factory.mktemp("runs")
-    return {name: _train(base / name, *spec) for name, spec in RUNS.items()}
+    return {name: train_tiny(base / name, *spec) for name, spec in RUNS.items()}
 
 
 @pytest.fixture(scope="module")
@@ -330,6 +304,17 @@ def test_reference_counts_are_consistent(
 DT = 1e-3
 
 
+def _snntorch_lif(n: int, tau: float, threshold: float) -> nir.LIF:
+    """A LIF population as snntorch exports it: r = tau/dt (unit input gain), no leak, reset 0."""
+    return nir.LIF(
+        tau=np.full(n, tau),
+        r=np.full(n, tau / DT),
+        v_leak=np.zeros(n),
+        v_threshold=np.full(n, threshold),
+        v_reset=np.zeros(n),
+    )
+
+
 def _graph(nodes: dict[str, Any], edges: list[tuple[str, str]]) -> nir.NIRGraph:
     return nir.NIRGraph(nodes=nodes, edges=edges)
 
@@ -451,21 +436,9 @@ def test_foreign_two_layer_graph_float32_and_lava_pipeline_agree() -> None:
         {
             "in": nir.Input(input_type={"input": np.array([3])}),
             "a": nir.Affine(weight=w1, bias=np.zeros(5, np.float32)),
-            "n1": nir.LIF(
-                tau=np.full(5, tau),
-                r=np.full(5, tau / DT),
-                v_leak=np.zeros(5),
-                v_threshold=np.full(5, 1.0),
-                v_reset=np.zeros(5),
-            ),
+            "n1": _snntorch_lif(5, tau, 1.0),
             "b": nir.Affine(weight=w2, bias=b2),
-            "n2": nir.LIF(
-                tau=np.full(4, tau),
-                r=np.full(4, tau / DT),
-                v_leak=np.zeros(4),
-                v_threshold=np.full(4, 0.5),
-                v_reset=np.zeros(4),
-            ),
+            "n2": _snntorch_lif(4, tau, 0.5),
             "out": nir.Output(output_type={"output": np.array([4])}),
         },
         [("in", "a"), ("a", "n1"), ("n1", "b"), ("b", "n2"), ("n2", "out")],

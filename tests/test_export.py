@@ -18,6 +18,7 @@ import nir
 import numpy as np
 import pytest
 import torch
+from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
 from snnkart.backends.reference import NIRFileError, NIRReference
@@ -25,18 +26,10 @@ from snnkart.cli import app
 from snnkart.export.manifest import MANIFEST_SCHEMA, Manifest, ManifestError, manifest_path
 from snnkart.export.nir_export import NIR_DT, ExportError, check_exportable, export_nir
 from snnkart.rl.checkpoint import spec_hash
-from snnkart.rl.config import load_config
 from snnkart.rl.policies import SNNPolicy
-from snnkart.rl.ppo import Trainer, make_env
+from snnkart.rl.ppo import make_env
 from snnkart.rl.run import LoadedRun, TorchPredictor, load_run
 
-TINY = [
-    "ppo.num_envs=2",
-    "ppo.num_steps=128",
-    "ppo.update_epochs=1",
-    "ppo.num_minibatches=2",
-    "run.tensorboard=false",
-]
 RUNS = {
     "grid": ("grid", "snn", "discrete"),
     "steer": ("steer", "snn", "discrete"),
@@ -57,30 +50,11 @@ CHAIN_EDGES = {("input", "0"), ("0", "1"), ("1", "2"), ("2", "3"), ("3", "4"), (
 PARITY_STEPS = 1000
 
 
-def _train(run_dir: Path, env: str, policy: str, action_mode: str) -> Path:
-    cfg = load_config(
-        overrides={
-            "env": env,
-            "policy": policy,
-            "total_steps": 512,
-            "action_mode": action_mode,
-            "track": "small_S",
-        },
-        sets=TINY,
-    )
-    trainer = Trainer(cfg, run_dir)
-    try:
-        trainer.train()
-    finally:
-        trainer.close()
-    return run_dir
-
-
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Tiny trained runs (512 env steps each), trained once for the module."""
     base = tmp_path_factory.mktemp("runs")
-    return {name: _train(base / name, *spec) for name, spec in RUNS.items()}
+    return {name: train_tiny(base / name, *spec) for name, spec in RUNS.items()}
 
 
 @pytest.fixture(scope="module")
@@ -470,15 +444,7 @@ def test_cli_export_refuses_an_ann_run(runs: dict[str, Path], tmp_path: Path) ->
 
 
 def test_rate_encoding_draws_the_same_spikes_in_torch_and_the_reference(tmp_path: Path) -> None:
-    cfg = load_config(
-        overrides={"env": "steer", "policy": "snn", "total_steps": 256, "track": "small_S"},
-        sets=[*TINY, "snn.encoding=rate"],
-    )
-    trainer = Trainer(cfg, tmp_path / "rate")
-    try:
-        trainer.train()
-    finally:
-        trainer.close()
+    train_tiny(tmp_path / "rate", "steer", "snn", total_steps=256, extra_sets=["snn.encoding=rate"])
     run = load_run(tmp_path / "rate")
     nir_path, mpath = export_nir(run, tmp_path / "rate.nir")
     manifest = Manifest.read(mpath)
