@@ -470,3 +470,9 @@ def test_rate_encoding_draws_the_same_spikes_in_torch_and_the_reference(tmp_path
         env.close()
     assert same >= 0.999 * 300, f"{same} of 300 actions agree"
     assert differs_with_other_seed > 250  # the seed matters: the spikes are really random
+
+
+def test_manifest_is_mirrored_into_the_nir_metadata(exported: dict[str, Path]) -> None:
+    graph = nir.read(exported["grid"])
+    mirrored = Manifest.from_json(str(graph.metadata["snnkart_manifest"]), "metadata")
+    assert mirrored == Manifest.read(manifest_path(exported["grid"]))

@@ -101,7 +101,6 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
     with torch.no_grad():
         graph = export_to_nir(net, torch.zeros(actor.fc1.in_features))
     _check_graph(graph, sizes, betas, thresholds)
-    graph.metadata = {"snnkart_manifest": "see the .manifest.json file beside this file"}
 
     out = Path(out)
     cfg = run.config
@@ -133,6 +132,8 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
             "global_step": run.meta.get("global_step"),
         },
     )
+    # Mirrored for information only: backends read the manifest file, never NIR metadata.
+    graph.metadata = {"snnkart_manifest": manifest.to_json()}
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:
         nir.write(tmp, graph)
