@@ -25,6 +25,7 @@ from snnkart.envs.constants import (
     PIXELS_PER_METRE,
     RENDER_FPS,
 )
+from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.tracks import Track, load_track
 
@@ -124,6 +125,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._goals = [(*cp.a, *cp.b) for cp in self.track.checkpoints]
         self._n_checkpoints = len(self._goals)
         self._dist_scale = self.config.checkpoint_distance_scale_m * PIXELS_PER_METRE
+        self._geodesic = geodesic_field(self.track)
         self.max_episode_steps = self.config.max_episode_steps or math.ceil(
             self.track.time_limit_s * self._time_limit_factor() / DT
         )
@@ -200,10 +202,15 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
         rw = self.config.reward
         finished = self._finished
-        goal = self._goals[self._next_cp]
-        gx0, gy0 = _nearest_point(goal, x0, y0)
-        gx1, gy1 = _nearest_point(goal, self._x, self._y)
-        progress_px = math.hypot(gx0 - x0, gy0 - y0) - math.hypot(gx1 - self._x, gy1 - self._y)
+        # Progress = how much nearer the kart came to the next checkpoint line along the
+        # track (geodesic distance; see snnkart/envs/geodesic.py). NaN (inside a wall, or
+        # behind the checkpoint just passed) gives no progress either way.
+        k = self._next_cp
+        progress_px = self._geodesic.distance(k, x0, y0) - self._geodesic.distance(
+            k, self._x, self._y
+        )
+        if math.isnan(progress_px):
+            progress_px = 0.0
         terms = {
             "progress": rw.progress * progress_px / PIXELS_PER_METRE,
             "checkpoint": rw.checkpoint * self._passed_this_step,

@@ -62,7 +62,7 @@ class Checkpoint:
 
     @property
     def midpoint(self) -> tuple[float, float]:
-        """The shaping goal of this checkpoint (as in the original)."""
+        """The midpoint (the original's shaping goal; snnkart measures geodesic progress)."""
         return ((self.a[0] + self.b[0]) / 2.0, (self.a[1] + self.b[1]) / 2.0)
 
 

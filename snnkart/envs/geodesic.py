@@ -1,0 +1,151 @@
+"""Geodesic distance to each checkpoint line through the track's free space.
+
+The progress reward is the decrease of this distance: how much nearer the kart came to
+touching the next checkpoint line, measured along the shortest path a kart centre can take
+(around corners, never through walls). The straight-line distance to the line, used before,
+is flat or even rising along the way around a corner, which left policies parked at corners.
+As a potential-based shaping term (Ng, Harada and Russell, 1999) it cannot be farmed: over a
+stretch between two checkpoints it sums to the distance driven towards the next one.
+
+The field is computed once per track (and cached) by Dijkstra's algorithm on a grid of
+``CELL_PX`` cells with 16-neighbour moves (within ~1 % of Euclidean length in open space).
+A cell is free when its centre is at least ``FREE_CLEARANCE_PX`` from every wall. A kart that
+is not touching a wall has its centre ``KART_RADIUS_PX`` away from every wall, so the four
+cells around it are always free; no move between two free cells can cross a wall, because a
+wall crossing a move of length L would leave one end within L/2 of it. The sources of field k
+are the cells where the kart touches checkpoint line k without touching a wall (within one
+kart radius of the line, at least one from every wall),
+and moves across line k-1 are removed, so the distance never takes a way back through the
+checkpoint just passed (it would on a loop whose checkpoints are more than half a lap apart).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from snnkart.envs.constants import KART_RADIUS_PX
+from snnkart.envs.tracks import Track, TrackError
+
+CELL_PX = 4.0
+"""Grid spacing, px (4 cm)."""
+
+FREE_CLEARANCE_PX = 0.6 * KART_RADIUS_PX
+"""A cell centre this far from every wall is free (see the module docstring for the bound)."""
+
+_MOVES = ((1, 0), (0, 1), (1, 1), (1, -1), (1, 2), (2, 1), (1, -2), (2, -1))
+"""Half of the 16 neighbour moves (di, dj); the graph is undirected."""
+
+
+def _segment_distance(px: np.ndarray, py: np.ndarray, seg: tuple[float, ...]) -> np.ndarray:
+    """Distance from points (px, py) to the segment (ax, ay, bx, by)."""
+    ax, ay, bx, by = seg
+    dx, dy = bx - ax, by - ay
+    t = np.clip(((px - ax) * dx + (py - ay) * dy) / max(dx * dx + dy * dy, 1e-12), 0.0, 1.0)
+    return np.hypot(px - (ax + t * dx), py - (ay + t * dy))
+
+
+def _crosses(
+    x0: np.ndarray, y0: np.ndarray, x1: np.ndarray, y1: np.ndarray, seg: tuple[float, ...]
+) -> np.ndarray:
+    """Whether each move (x0, y0) -> (x1, y1) intersects the segment (ax, ay, bx, by)."""
+    ax, ay, bx, by = seg
+
+    def side(px: np.ndarray | float, py: np.ndarray | float, qx: np.ndarray | float,
+             qy: np.ndarray | float, rx: np.ndarray | float, ry: np.ndarray | float) -> np.ndarray:  # fmt: skip
+        return np.sign((qx - px) * (ry - py) - (qy - py) * (rx - px))  # type: ignore[no-any-return]
+
+    return (side(ax, ay, bx, by, x0, y0) != side(ax, ay, bx, by, x1, y1)) & (
+        side(x0, y0, x1, y1, ax, ay) != side(x0, y0, x1, y1, bx, by)
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class GeodesicField:
+    """Distances (px) from grid cells to each checkpoint line; ``inf`` where unreachable."""
+
+    origin: tuple[float, float]  # centre of cell [0, 0], px
+    cell: float
+    dist: np.ndarray  # [n_checkpoints, rows (y), cols (x)]
+
+    def distance(self, k: int, x: float, y: float) -> float:
+        """Geodesic distance (px) from (x, y) to checkpoint line ``k``, bilinear between cells.
+
+        Corners that are not free (or unreachable) are left out of the interpolation; NaN when
+        none of the four is usable (the kart is inside a wall or behind the checkpoint it
+        just passed on a track that is not a loop).
+        """
+        fx = (x - self.origin[0]) / self.cell
+        fy = (y - self.origin[1]) / self.cell
+        i, j = math.floor(fx), math.floor(fy)
+        tx, ty = fx - i, fy - j
+        d = self.dist[k]
+        rows, cols = d.shape
+        total = weight = 0.0
+        for dj, di, w in ((0, 0, (1 - tx) * (1 - ty)), (0, 1, tx * (1 - ty)),
+                          (1, 0, (1 - tx) * ty), (1, 1, tx * ty)):  # fmt: skip
+            r, c = j + dj, i + di
+            if 0 <= r < rows and 0 <= c < cols:
+                v = d[r, c]
+                if v != math.inf and w > 0.0:
+                    total += w * v
+                    weight += w
+        return total / weight if weight > 0.0 else math.nan
+
+
+@functools.lru_cache(maxsize=8)
+def geodesic_field(track: Track, cell: float = CELL_PX) -> GeodesicField:
+    """Compute (once per track and cell size) the geodesic distance fields of ``track``."""
+    xmin, ymin, xmax, ymax = track.bounds
+    xs = np.arange(xmin, xmax + cell, cell)
+    ys = np.arange(ymin, ymax + cell, cell)
+    gx, gy = np.meshgrid(xs, ys)  # [rows, cols]
+    clearance = np.full(gx.shape, np.inf)
+    for seg in track.segments:
+        np.minimum(clearance, _segment_distance(gx, gy, tuple(seg)), out=clearance)
+    free = clearance >= FREE_CLEARANCE_PX
+    index = np.full(gx.shape, -1, dtype=np.int64)
+    index[free] = np.arange(int(free.sum()))
+    rows, cols = gx.shape
+
+    # Undirected edges between free cells: one array per move.
+    edges = []
+    for di, dj in _MOVES:
+        r0 = slice(max(0, -dj), rows - max(0, dj))
+        c0 = slice(max(0, -di), cols - max(0, di))
+        r1 = slice(max(0, dj), rows - max(0, -dj))
+        c1 = slice(max(0, di), cols - max(0, -di))
+        a, b = index[r0, c0].ravel(), index[r1, c1].ravel()
+        ok = (a >= 0) & (b >= 0)
+        edges.append((a[ok], b[ok], cell * math.hypot(di, dj)))
+    a = np.concatenate([e[0] for e in edges])
+    b = np.concatenate([e[1] for e in edges])
+    w = np.concatenate([np.full(e[0].shape, e[2]) for e in edges])
+    fx, fy, fc = gx[free], gy[free], clearance[free]
+
+    n = int(free.sum())
+    dist = np.full((len(track.checkpoints), rows, cols), np.inf)
+    for k, cp in enumerate(track.checkpoints):
+        seg_k = (*cp.a, *cp.b)
+        sources = np.flatnonzero(
+            (_segment_distance(fx, fy, seg_k) <= KART_RADIUS_PX) & (fc >= KART_RADIUS_PX)
+        )
+        if sources.size == 0:
+            raise TrackError(
+                f"track {track.name!r} ({track.source}): checkpoint {k + 1} leaves no room for "
+                f"the kart to touch it without touching a wall ({KART_RADIUS_PX:.1f} px "
+                "kart radius); move the line away from the walls"
+            )
+        keep = np.ones(a.shape, dtype=bool)
+        if k > 0:
+            prev = track.checkpoints[k - 1]
+            keep = ~_crosses(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
+        graph = coo_matrix((w[keep], (a[keep], b[keep])), shape=(n, n)).tocsr()
+        d = dijkstra(graph, directed=False, indices=sources, min_only=True)
+        dist[k][free] = d
+    return GeodesicField(origin=(float(xs[0]), float(ys[0])), cell=cell, dist=dist)

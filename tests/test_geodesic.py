@@ -1,0 +1,135 @@
+"""The progress potential: geodesic distance to the next checkpoint line through free space."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from snnkart.envs.constants import KART_RADIUS_PX
+from snnkart.envs.gazebo import GazeboEnv
+from snnkart.envs.geodesic import geodesic_field
+from snnkart.envs.grid import GridEnv
+from snnkart.envs.tracks import Checkpoint, Track, TrackError, load_track, parse_track
+
+R = KART_RADIUS_PX
+
+
+def make_track(walls, checkpoints, spawn, name="t") -> Track:
+    track = Track(
+        name=name,
+        walls=tuple(tuple(map(tuple, w)) for w in walls),
+        checkpoints=tuple(Checkpoint(tuple(a), tuple(b)) for a, b in checkpoints),
+        spawn_position=spawn,
+        spawn_heading=0.0,
+        spawn_jitter=0.0,
+        time_limit_s=10.0,
+    )
+    return parse_track(track.to_toml(), source=name)
+
+
+# A straight corridor 100 px wide from x = 0 to x = 600, finish line at x = 500.
+CORRIDOR = make_track(
+    walls=[[(0, 100), (600, 100)], [(0, 200), (600, 200)], [(0, 100), (0, 200)]],
+    checkpoints=[((500, 100), (500, 200))],
+    spawn=(60.0, 150.0),
+    name="corridor",
+)
+
+# An L: east along y in [100, 200] to x = 400, then south along x in [300, 400] to y = 600.
+# The finish line crosses the south leg at y = 500.
+L_TRACK = make_track(
+    walls=[
+        [(0, 100), (400, 100), (400, 600)],  # outer wall
+        [(0, 200), (300, 200), (300, 600)],  # inner wall, corner at (300, 200)
+        [(0, 100), (0, 200)],
+    ],
+    checkpoints=[((300, 500), (400, 500))],
+    spawn=(60.0, 150.0),
+    name="L",
+)
+
+
+def test_straight_corridor_distance_is_euclidean_to_touching_the_line():
+    """In open space the distance is the straight distance to where the kart touches the line
+    (its centre one radius before it), within the grid's 16-neighbour error."""
+    field = geodesic_field(CORRIDOR)
+    for x in (60.0, 150.0, 333.3, 420.0):
+        for y in (130.0, 150.0, 171.0):
+            expected = 500.0 - R - x
+            assert field.distance(0, x, y) == pytest.approx(expected, abs=4.0, rel=0.02)
+
+
+def test_distance_goes_around_corners_not_through_walls():
+    """In the L, a point in the east leg is measured around the inner corner: longer than
+    the straight line through the wall, and as long as the corner path (to ~2 %)."""
+    field = geodesic_field(L_TRACK)
+    x, y = 100.0, 150.0
+    target_y = 500.0 - R  # where the kart touches the finish line
+    straight = math.hypot(350.0 - x, target_y - y)
+    # The shortest path keeps the free clearance c from the inner corner (300, 200): straight
+    # to (300, 200 - c), a quarter circle of radius c, then straight down at x = 300 + c.
+    c = 0.6 * R
+    around = math.hypot(300.0 - x, 200.0 - c - y) + math.pi / 2 * c + (target_y - 200.0)
+    d = field.distance(0, x, y)
+    assert d > straight + 20.0
+    assert d == pytest.approx(around, rel=0.03)
+
+
+def test_distance_falls_steadily_along_the_centreline_around_a_corner():
+    """Driving the L (east, across the corner square, then south) lowers the distance at every
+    step: no flat stretch or rise before the corner where a policy could park for free."""
+    field = geodesic_field(L_TRACK)
+    east = [(x, 150.0) for x in np.arange(60.0, 300.0, 5.0)]
+    corner = [(300.0 + t, 150.0 + t) for t in np.arange(0.0, 50.0, 5.0)]
+    south = [(350.0, y) for y in np.arange(200.0, 500.0 - R, 5.0)]
+    d = [field.distance(0, x, y) for x, y in east + corner + south]
+    assert all(np.isfinite(d))
+    assert np.all(np.diff(d) < 0.0), np.diff(d)
+
+
+def test_no_way_back_through_the_checkpoint_just_passed():
+    """On small_S, field 2 (the second checkpoint) is undefined behind checkpoint 1: the start
+    area is reachable only back through that line, which the distance may not use."""
+    track = load_track("small_S")
+    field = geodesic_field(track)
+    sx, sy = track.spawn_position
+    assert math.isfinite(field.distance(0, sx, sy))
+    assert math.isnan(field.distance(1, sx, sy))
+
+
+def test_checkpoint_without_room_for_the_kart_is_refused():
+    """A checkpoint line with no free space within one kart radius (a wall lies along it) is a
+    track error that names the checkpoint, not a silent zero reward."""
+    track = make_track(
+        walls=[[(0, 100), (600, 100)], [(0, 200), (600, 200)], [(0, 100), (0, 200)]],
+        checkpoints=[((100, 100), (500, 100))],  # lies on the wall
+        spawn=(60.0, 150.0),
+        name="bad",
+    )
+    with pytest.raises(TrackError, match="checkpoint 1"):
+        geodesic_field(track)
+
+
+@pytest.mark.parametrize("env_class", [GridEnv, GazeboEnv])
+def test_progress_reward_is_the_drop_in_geodesic_distance(env_class):
+    """Each step's progress term equals the decrease of the geodesic distance to the next
+    checkpoint (per metre), so the terms of a stretch add up to the distance made good."""
+    env = env_class(track="small_S", action_mode="discrete")
+    field = geodesic_field(env.track)
+    env.reset(seed=3)
+    env.action_space.seed(0)
+    for _ in range(150):
+        k_before = env.next_checkpoint
+        x0, y0 = env.position
+        _, _, terminated, truncated, info = env.step(env.action_space.sample())
+        if terminated or truncated:
+            break
+        if env.next_checkpoint != k_before:
+            continue
+        x1, y1 = env.position
+        expected = (field.distance(k_before, x0, y0) - field.distance(k_before, x1, y1)) / 100.0
+        assert info["reward_terms"]["progress"] == pytest.approx(
+            env.config.reward.progress * expected, abs=1e-12
+        )
