@@ -70,6 +70,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     _y: float
     _heading: float
     _next_cp: int
+    _geo_k: int
+    _geo_d: float
     _finished: bool
     _passed_this_step: int
     _touched_wall: bool
@@ -206,9 +208,10 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         # track (geodesic distance; see snnkart/envs/geodesic.py). NaN (inside a wall, or
         # behind the checkpoint just passed) gives no progress either way.
         k = self._next_cp
-        progress_px = self._geodesic.distance(k, x0, y0) - self._geodesic.distance(
-            k, self._x, self._y
-        )
+        d0 = self._geo_d if self._geo_k == k else self._geodesic.distance(k, x0, y0)
+        d1 = self._geodesic.distance(k, self._x, self._y)
+        self._geo_k, self._geo_d = k, d1  # the next step starts here
+        progress_px = d0 - d1
         if math.isnan(progress_px):
             progress_px = 0.0
         terms = {
@@ -337,6 +340,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._heading = 0.0
         self._next_cp = 0
         self._finished = False
+        self._geo_k, self._geo_d = -1, math.nan  # cached distance of the last position
         self._passed_this_step = 0
         self._touched_wall = False
         self._steps = 0
