@@ -11,6 +11,7 @@ file after every run, so an interrupted benchmark keeps what it measured.
 
     python -m benchmarks.bench_learning [--envs grid gazebo steer] [--policies ann snn]
                                         [--seeds 1 2 3] [--steps 300000] [--jobs 2]
+                                        [--set ppo.ent_coef=0.02 ...]
 """
 
 from __future__ import annotations
@@ -30,12 +31,15 @@ ROOT = Path(__file__).resolve().parents[1]
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
 
 
-def one_run(env: str, policy: str, seed: int, steps: int, runs: Path) -> dict[str, Any]:
+def one_run(
+    env: str, policy: str, seed: int, steps: int, runs: Path, sets: list[str]
+) -> dict[str, Any]:
     run_dir = runs / f"{env}-{policy}-s{seed}"
     start = time.perf_counter()
     subprocess.run(
         [*SNNKART, "train", "--env", env, "--policy", policy, "--track", "small_S",
          "--seed", str(seed), "--steps", str(steps), "--out", str(run_dir)]
+        + [arg for kv in sets for arg in ("--set", kv)]
         + (["--resume"] if (run_dir / "config.toml").exists() else []),
         check=True, cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
@@ -73,13 +77,24 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "bench_learning")
+    parser.add_argument(
+        "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+        help="a non-default setting for every run (snnkart train --set), recorded in the JSON",
+    )  # fmt: skip
     args = parser.parse_args()
 
     path = results_path("bench_learning")
-    results: dict[str, Any] = {"machine": machine_info(), "steps": args.steps, "runs": []}
+    results: dict[str, Any] = {
+        "machine": machine_info(),
+        "steps": args.steps,
+        "settings": args.sets,
+        "runs": [],
+    }
     jobs = [(e, p, s) for e in args.envs for p in args.policies for s in args.seeds]
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(one_run, e, p, s, args.steps, args.runs) for e, p, s in jobs]
+        futures = [
+            pool.submit(one_run, e, p, s, args.steps, args.runs, args.sets) for e, p, s in jobs
+        ]
         for fut in futures:
             r = fut.result()
             results["runs"].append(r)
