@@ -68,9 +68,9 @@ def test_distance_goes_around_corners_not_through_walls():
     x, y = 100.0, 150.0
     target_y = 500.0 - R  # where the kart touches the finish line
     straight = math.hypot(350.0 - x, target_y - y)
-    # The shortest path keeps the free clearance c from the inner corner (300, 200): straight
+    # The shortest path keeps one kart radius c from the inner corner (300, 200): straight
     # to (300, 200 - c), a quarter circle of radius c, then straight down at x = 300 + c.
-    c = 0.6 * R
+    c = R
     around = math.hypot(300.0 - x, 200.0 - c - y) + math.pi / 2 * c + (target_y - 200.0)
     d = field.distance(0, x, y)
     assert d > straight + 20.0
@@ -133,3 +133,33 @@ def test_progress_reward_is_the_drop_in_geodesic_distance(env_class):
         assert info["reward_terms"]["progress"] == pytest.approx(
             env.config.reward.progress * expected, abs=1e-12
         )
+
+
+def test_route_follows_the_corridor_and_turns_at_the_corner():
+    """The route (steepest descent of the distance) points along the east leg, down-right
+    near the inner corner, and straight down the south leg."""
+    field = geodesic_field(L_TRACK)
+    east = field.route(0, 100.0, 150.0)
+    corner = field.route(0, 280.0, 140.0)  # heads for the inner corner at (300, 200)
+    south = field.route(0, 350.0, 350.0)
+    assert east is not None and corner is not None and south is not None
+    assert east[0] > 0.95  # east (slightly down, towards the corner)
+    assert corner[0] > 0.2 and corner[1] > 0.5  # down-right, around the corner
+    assert south == pytest.approx((0.0, 1.0), abs=0.05)
+    assert field.route(0, 350.0, 495.0) is None  # touching the line: no path left
+
+
+def test_observation_gives_the_way_around_the_corner_not_through_the_wall():
+    """In the L, the grid kart at the start sees the next checkpoint to the east (the way
+    round the corner), although the line itself lies to the south-east behind a wall; the
+    distance observation is the path length."""
+    env = GridEnv(track=L_TRACK, config={"checkpoint_distance_scale_m": 10.0})
+    obs, _ = env.reset(seed=0)
+    names = [f.name for f in env.observation_layout for _ in range(f.size)]
+    cos, sin = obs[names.index("checkpoint_cos")], obs[names.index("checkpoint_sin")]
+    dist = obs[names.index("checkpoint_distance")]
+    assert cos > 0.95 and abs(sin) < 0.3
+    x, y = env.position
+    assert dist == pytest.approx(geodesic_field(L_TRACK).distance(0, x, y) / 1000.0, rel=1e-6)
+    straight = math.atan2(500.0 - y, 300.0 - x)  # to the line's nearest point: 56° south of east
+    assert math.cos(straight) < 0.6

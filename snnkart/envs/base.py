@@ -135,9 +135,9 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self.observation_layout: tuple[ObsField, ...] = (
             ObsField("lidar", lidar.n_rays, 0.0, 1.0, "ray distance / range, 1 = no hit"),
             *self._kinematic_fields(),
-            ObsField("checkpoint_cos", 1, -1.0, 1.0, "cos of the direction to the next checkpoint"),
-            ObsField("checkpoint_sin", 1, -1.0, 1.0, "sin of the direction to the next checkpoint"),
-            ObsField("checkpoint_distance", 1, 0.0, 1.0, "min(distance / scale, 1)"),
+            ObsField("checkpoint_cos", 1, -1.0, 1.0, "cos of the way to the next checkpoint"),
+            ObsField("checkpoint_sin", 1, -1.0, 1.0, "sin of the way to the next checkpoint"),
+            ObsField("checkpoint_distance", 1, 0.0, 1.0, "min(path distance / scale, 1)"),
         )
         low = np.concatenate([np.full(f.size, f.low) for f in self.observation_layout])
         high = np.concatenate([np.full(f.size, f.high) for f in self.observation_layout])
@@ -359,9 +359,16 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         obs = np.empty(self._obs_dim, dtype=np.float32)
         obs[:n] = self._lidar
         k = self._write_kinematics(obs, n)
-        gx, gy = _nearest_point(self._goals[self._next_cp], self._x, self._y)
-        dx, dy = gx - self._x, gy - self._y
-        dist = math.hypot(dx, dy)
+        # The next checkpoint's direction along the shortest drivable path (around corners)
+        # and its geodesic distance; straight-line values where those are undefined (the
+        # kart touching the line, or behind the checkpoint it just passed).
+        cp = self._next_cp
+        if self._geo_k != cp:
+            self._geo_k, self._geo_d = cp, self._geodesic.distance(cp, self._x, self._y)
+        route = self._geodesic.route(cp, self._x, self._y)
+        gx, gy = _nearest_point(self._goals[cp], self._x, self._y)
+        dx, dy = route if route is not None else (gx - self._x, gy - self._y)
+        dist = self._geo_d if self._geo_d == self._geo_d else math.hypot(gx - self._x, gy - self._y)
         rel = math.atan2(dy, dx) - (self._heading if self.egocentric else 0.0)
         obs[k] = math.cos(rel)
         obs[k + 1] = math.sin(rel)

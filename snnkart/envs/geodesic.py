@@ -9,14 +9,16 @@ stretch between two checkpoints it sums to the distance driven towards the next 
 
 The field is computed once per track (and cached) by Dijkstra's algorithm on a grid of
 ``CELL_PX`` cells with 16-neighbour moves (within ~1 % of Euclidean length in open space).
-A cell is free when its centre is at least ``FREE_CLEARANCE_PX`` from every wall. A kart that
-is not touching a wall has its centre ``KART_RADIUS_PX`` away from every wall, so the four
-cells around it are always free; no move between two free cells can cross a wall, because a
-wall crossing a move of length L would leave one end within L/2 of it. The sources of field k
-are the cells where the kart touches checkpoint line k without touching a wall (within one
-kart radius of the line, at least one from every wall),
-and moves across line k-1 are removed, so the distance never takes a way back through the
-checkpoint just passed (it would on a loop whose checkpoints are more than half a lap apart).
+Paths run where the kart centre can be: at least one kart radius from every wall, so the way
+around a corner is one the kart can drive, not one that scrapes the corner. Cells nearer a
+wall, down to ``FREE_CLEARANCE_PX``, form a margin that takes its value from the nearest
+road cell (plus the way there) without shortening any path; they give the bilinear lookup
+four corners when the kart grazes a wall. No move between two cells of at least that
+clearance can cross a wall, because a wall crossing a move of length L would leave one end
+within L/2 of it. The sources of field k are the road cells where the kart touches
+checkpoint line k (within one kart radius of it), and moves across line k-1 are removed, so
+the distance never takes a way back through the checkpoint just passed (it would on a loop
+whose checkpoints are more than half a lap apart).
 """
 
 from __future__ import annotations
@@ -67,11 +69,13 @@ def _crosses(
 
 @dataclass(frozen=True, eq=False)
 class GeodesicField:
-    """Distances (px) from grid cells to each checkpoint line; ``inf`` where unreachable."""
+    """Distances (px) from grid cells to each checkpoint line and their gradients; NaN where
+    a cell is not free or cannot reach the line."""
 
     origin: tuple[float, float]  # centre of cell [0, 0], px
     cell: float
     dist: np.ndarray  # [n_checkpoints, rows (y), cols (x)]
+    grad: np.ndarray  # [n_checkpoints, 2 (d/dx, d/dy), rows, cols], px per px
 
     def distance(self, k: int, x: float, y: float) -> float:
         """Geodesic distance (px) from (x, y) to checkpoint line ``k``, bilinear between cells.
@@ -80,22 +84,49 @@ class GeodesicField:
         none of the four is usable (the kart is inside a wall or behind the checkpoint it
         just passed on a track that is not a loop).
         """
+        return self._sample(self.dist[k], x, y)
+
+    def route(self, k: int, x: float, y: float) -> tuple[float, float] | None:
+        """Unit vector (x, y) along the shortest path to checkpoint line ``k`` (the distance's
+        steepest descent); None where it is undefined (touching the line, inside a wall)."""
+        gx = self._sample(self.grad[k, 0], x, y)
+        gy = self._sample(self.grad[k, 1], x, y)
+        norm = math.hypot(gx, gy)
+        if not norm > 0.1:  # also NaN; |grad| is 1 along a path, ~0 on the line itself
+            return None
+        return (-gx / norm, -gy / norm)
+
+    def _sample(self, grid: np.ndarray, x: float, y: float) -> float:
         fx = (x - self.origin[0]) / self.cell
         fy = (y - self.origin[1]) / self.cell
         i, j = math.floor(fx), math.floor(fy)
         tx, ty = fx - i, fy - j
-        d = self.dist[k]
-        rows, cols = d.shape
+        rows, cols = grid.shape
         total = weight = 0.0
         for dj, di, w in ((0, 0, (1 - tx) * (1 - ty)), (0, 1, tx * (1 - ty)),
                           (1, 0, (1 - tx) * ty), (1, 1, tx * ty)):  # fmt: skip
             r, c = j + dj, i + di
-            if 0 <= r < rows and 0 <= c < cols:
-                v = d[r, c]
-                if v != math.inf and w > 0.0:
+            if 0 <= r < rows and 0 <= c < cols and w > 0.0:
+                v = grid[r, c]
+                if v == v:  # not NaN
                     total += w * v
                     weight += w
         return total / weight if weight > 0.0 else math.nan
+
+
+def _gradient(d: np.ndarray, cell: float) -> np.ndarray:
+    """[2, rows, cols] finite-difference gradient of ``d``: central where both neighbours are
+    defined, one-sided where one is, NaN where neither is or ``d`` itself is NaN."""
+    p = np.pad(d, 1, constant_values=np.nan)
+    out = np.empty((2, *d.shape))
+    for axis, (lo, hi) in enumerate(((p[1:-1, :-2], p[1:-1, 2:]), (p[:-2, 1:-1], p[2:, 1:-1]))):
+        central = (hi - lo) / (2.0 * cell)
+        forward = (hi - d) / cell
+        backward = (d - lo) / cell
+        g = np.where(np.isnan(central), np.where(np.isnan(forward), backward, forward), central)
+        g[np.isnan(d)] = np.nan
+        out[axis] = g
+    return out
 
 
 @functools.lru_cache(maxsize=8)
@@ -127,14 +158,13 @@ def geodesic_field(track: Track, cell: float = CELL_PX) -> GeodesicField:
     b = np.concatenate([e[1] for e in edges])
     w = np.concatenate([np.full(e[0].shape, e[2]) for e in edges])
     fx, fy, fc = gx[free], gy[free], clearance[free]
+    drive = fc >= KART_RADIUS_PX
 
     n = int(free.sum())
-    dist = np.full((len(track.checkpoints), rows, cols), np.inf)
+    dist = np.full((len(track.checkpoints), rows, cols), np.nan)
     for k, cp in enumerate(track.checkpoints):
         seg_k = (*cp.a, *cp.b)
-        sources = np.flatnonzero(
-            (_segment_distance(fx, fy, seg_k) <= KART_RADIUS_PX) & (fc >= KART_RADIUS_PX)
-        )
+        sources = np.flatnonzero((_segment_distance(fx, fy, seg_k) <= KART_RADIUS_PX) & drive)
         if sources.size == 0:
             raise TrackError(
                 f"track {track.name!r} ({track.source}): checkpoint {k + 1} leaves no room for "
@@ -145,7 +175,25 @@ def geodesic_field(track: Track, cell: float = CELL_PX) -> GeodesicField:
         if k > 0:
             prev = track.checkpoints[k - 1]
             keep = ~_crosses(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
-        graph = coo_matrix((w[keep], (a[keep], b[keep])), shape=(n, n)).tocsr()
+        # The path itself runs where the kart centre can be (one radius from every wall).
+        on_road = keep & drive[a] & drive[b]
+        graph = coo_matrix((w[on_road], (a[on_road], b[on_road])), shape=(n, n)).tocsr()
         d = dijkstra(graph, directed=False, indices=sources, min_only=True)
-        dist[k][free] = d
-    return GeodesicField(origin=(float(xs[0]), float(ys[0])), cell=cell, dist=dist)
+        # The margin (free, but nearer a wall than the radius) takes the distance of the
+        # nearest road cell plus the way there, so the bilinear lookup has four corners even
+        # when the kart grazes a wall; it never shortens a path between road cells.
+        margin = keep & ~(drive[a] & drive[b])
+        reached = np.flatnonzero(np.isfinite(d))
+        graph = coo_matrix(
+            (
+                np.concatenate([w[margin], d[reached] + 1e-9]),
+                (np.concatenate([a[margin], np.full(reached.size, n)]),
+                 np.concatenate([b[margin], reached])),
+            ),
+            shape=(n + 1, n + 1),
+        ).tocsr()  # fmt: skip
+        d_margin = dijkstra(graph, directed=False, indices=n)[:n]
+        d = np.where(drive, d, d_margin)
+        dist[k][free] = np.where(np.isinf(d), np.nan, d)
+    grad = np.stack([_gradient(d, cell) for d in dist])
+    return GeodesicField(origin=(float(xs[0]), float(ys[0])), cell=cell, dist=dist, grad=grad)

@@ -37,9 +37,9 @@ class GridEnv(KartEnv[GridConfig]):
     | 0 .. n-1 | lidar | [0, 1] | world-fixed rays, ray k at -180 deg + k*fov/n (0 deg = +x), distance / range, 1 = no hit |
     | n | velocity_x | [-1, 1] | x velocity / max speed |
     | n+1 | velocity_y | [-1, 1] | y velocity / max speed (y down) |
-    | n+2 | checkpoint_cos | [-1, 1] | cos of the world direction to the nearest point of the next checkpoint line |
+    | n+2 | checkpoint_cos | [-1, 1] | cos of the world direction in which the shortest drivable path to the next checkpoint line leaves (around corners; straight at the nearest point of the line when touching it) |
     | n+3 | checkpoint_sin | [-1, 1] | sin of that direction |
-    | n+4 | checkpoint_distance | [0, 1] | min(distance / checkpoint_distance_scale_m, 1) |
+    | n+4 | checkpoint_distance | [0, 1] | min(path length to the line / checkpoint_distance_scale_m, 1) (geodesic; `snnkart/envs/geodesic.py`) |
 
     ## Rewards
     Per step, the sum of the terms in :class:`~snnkart.envs.config.RewardConfig` (each one
