@@ -236,7 +236,7 @@ def test_reward_term_names(env_class):
     env = env_class()
     env.reset(seed=0)
     *_, info = env.step(IDLE[env_class])
-    expected = {"progress", "checkpoint", "finish", "time", "wall", "stand_still"}
+    expected = {"progress", "heading", "checkpoint", "finish", "time", "wall", "stand_still"}
     if env_class is SteerEnv:
         expected.add("steering")
     assert set(info["reward_terms"]) == expected

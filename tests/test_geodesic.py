@@ -163,3 +163,41 @@ def test_observation_gives_the_way_around_the_corner_not_through_the_wall():
     assert dist == pytest.approx(geodesic_field(L_TRACK).distance(0, x, y) / 1000.0, rel=1e-6)
     straight = math.atan2(500.0 - y, 300.0 - x)  # to the line's nearest point: 56° south of east
     assert math.cos(straight) < 0.6
+
+
+def test_turning_on_the_spot_towards_the_route_pays_the_heading_term():
+    """Gazebo on the L, spinning right on the spot from facing north: each step's heading term
+    is the change of checkpoint_cos times its weight, so over a full turn they add up to
+    nothing (potential-based), and they are positive while the kart turns towards the route."""
+    env = GazeboEnv(track=L_TRACK, config={"reward": {"stand_still_steps": 10_000}})
+    weight = env.config.reward.heading
+    obs, _ = env.reset(seed=0)
+    names = [f.name for f in env.observation_layout for _ in range(f.size)]
+    icos = names.index("checkpoint_cos")
+    right = 4
+    cos_prev, total, gained = float(obs[icos]), 0.0, []
+    steps = 0
+    while env.heading < 2 * math.pi or steps < 10:
+        obs, _, terminated, truncated, info = env.step(right)
+        steps += 1
+        assert not (terminated or truncated)
+        term = info["reward_terms"]["heading"]
+        assert term == pytest.approx(weight * (float(obs[icos]) - cos_prev), abs=1e-6)
+        total += term
+        gained.append(term)
+        cos_prev = float(obs[icos])
+    assert max(gained) > 0.0 and min(gained) < 0.0
+    # A full turn and a little: the sum is the change of cos since the start.
+    assert total == pytest.approx(weight * (cos_prev - float(env.reset(seed=0)[0][icos])), abs=1e-6)
+
+
+def test_grid_has_no_heading_term():
+    """The grid kart does not rotate; its heading term is always zero."""
+    env = GridEnv(track=L_TRACK)
+    env.reset(seed=0)
+    env.action_space.seed(1)
+    for _ in range(100):
+        *_, terminated, truncated, info = env.step(env.action_space.sample())
+        assert info["reward_terms"]["heading"] == 0.0
+        if terminated or truncated:
+            env.reset()

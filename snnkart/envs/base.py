@@ -72,6 +72,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     _next_cp: int
     _geo_k: int
     _geo_d: float
+    _align: float
     _finished: bool
     _passed_this_step: int
     _touched_wall: bool
@@ -195,6 +196,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         if self._needs_reset:
             raise RuntimeError("call reset() before step(): the episode has ended or not begun")
         x0, y0 = self._x, self._y
+        align0, align0_cp = self._align, self._geo_k  # set by the last _observe()
         self._apply_action(action)
         self._touched_wall = False
         self._space.step(DT)
@@ -214,8 +216,14 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         progress_px = d0 - d1
         if math.isnan(progress_px):
             progress_px = 0.0
+        obs = self._observe()
+        # Heading: the change of the cosine between the body's heading and the way to the
+        # next checkpoint (the checkpoint_cos observation), a potential-based term that pays
+        # for turning towards the route, e.g. on the spot at a corner (egocentric envs only).
+        turn = self._align - align0 if self.egocentric and align0_cp == k else 0.0
         terms = {
             "progress": rw.progress * progress_px / PIXELS_PER_METRE,
+            "heading": rw.heading * turn,
             "checkpoint": rw.checkpoint * self._passed_this_step,
             "finish": rw.finish if finished else 0.0,
             "time": -rw.time,
@@ -223,7 +231,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             "stand_still": 0.0,
         }
         if finished:
-            terms["progress"] = 0.0
+            terms["progress"] = terms["heading"] = 0.0
         self._extra_reward_terms(terms)
         self._passed_this_step = 0
 
@@ -247,7 +255,6 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._last_terms = terms
         self._episode_return += reward
 
-        obs = self._observe()
         info = self._info(crashed=crashed, stood_still=stood_still)
         if self.render_mode == "human":
             self.render()
@@ -341,6 +348,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._next_cp = 0
         self._finished = False
         self._geo_k, self._geo_d = -1, math.nan  # cached distance of the last position
+        self._align = 0.0  # checkpoint_cos of the last observation
         self._passed_this_step = 0
         self._touched_wall = False
         self._steps = 0
@@ -370,7 +378,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         dx, dy = route if route is not None else (gx - self._x, gy - self._y)
         dist = self._geo_d if self._geo_d == self._geo_d else math.hypot(gx - self._x, gy - self._y)
         rel = math.atan2(dy, dx) - (self._heading if self.egocentric else 0.0)
-        obs[k] = math.cos(rel)
+        self._align = math.cos(rel)
+        obs[k] = self._align
         obs[k + 1] = math.sin(rel)
         obs[k + 2] = min(dist / self._dist_scale, 1.0)
         return obs

@@ -32,6 +32,12 @@ class RewardConfig(_Frozen):
     """
 
     progress: float = Field(1.0, description="per metre of progress toward the next checkpoint")
+    heading: float = Field(
+        0.5,
+        ge=0.0,
+        description="gazebo and steer: per unit rise of the cosine between the heading and the "
+        "way to the next checkpoint (potential-based; turning back costs as much)",
+    )
     checkpoint: float = Field(1.0, description="bonus per checkpoint passed in order")
     finish: float = Field(10.0, description="bonus for crossing the finish line")
     time: float = Field(

@@ -47,6 +47,11 @@ class PPOConfig(_Section):
     ent_coef: float = Field(
         0.02, ge=0.0, description="0.02: keeps exploring past corners where 0.01 settled early"
     )
+    anneal_ent: bool = Field(
+        True,
+        description="entropy coefficient to 0 with the learning rate: explore early, end sharp, "
+        "so the deterministic (argmax) policy drives like the sampled one",
+    )
     vf_coef: float = Field(0.5, ge=0.0)
     max_grad_norm: float = Field(0.5, gt=0.0)
     target_kl: float | None = Field(None, gt=0.0, description="stop the epochs early above this")

@@ -197,6 +197,7 @@ class Trainer:
         torch.manual_seed(cfg.seed)
         self.policy = policy_for(cfg, self.env0)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=p.learning_rate, eps=1e-5)
+        self.ent_coef = p.ent_coef  # annealed with the learning rate when ppo.anneal_ent
         self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
         self.progress = Progress()
         self.rng = np.random.default_rng(cfg.seed)
@@ -282,9 +283,10 @@ class Trainer:
             while self.progress.iteration < self.num_iterations and not interrupted:
                 it_start = time.perf_counter()
                 self.progress.iteration += 1
+                frac = 1.0 - (self.progress.iteration - 1) / self.num_iterations
                 if p.anneal_lr:
-                    frac = 1.0 - (self.progress.iteration - 1) / self.num_iterations
                     self.optimizer.param_groups[0]["lr"] = frac * p.learning_rate
+                self.ent_coef = frac * p.ent_coef if p.anneal_ent else p.ent_coef
                 stats = IterationStats()
                 positions = np.zeros((S, E, 2), dtype=np.float32)
                 ends = np.zeros((S, E), dtype=bool)
@@ -432,7 +434,7 @@ class Trainer:
                 else:
                     v_loss = 0.5 * ((out.value - b_returns[mb]) ** 2).mean()
                 entropy = out.entropy.mean()
-                loss = pg_loss - p.ent_coef * entropy + p.vf_coef * v_loss
+                loss = pg_loss - self.ent_coef * entropy + p.vf_coef * v_loss
                 if rate_reg > 0.0 and out.rates is not None:
                     loss = loss + rate_reg * out.rates.sum()
                 self.optimizer.zero_grad()
@@ -504,6 +506,7 @@ class Trainer:
             "charts/cumulative_finishes": self.progress.finishes,
             "charts/first_finish_step": self.progress.first_finish_step,
             "charts/learning_rate": self.optimizer.param_groups[0]["lr"],
+            "charts/ent_coef": self.ent_coef,
             "charts/SPS": steps / (rollout_time + update_time),
             "charts/rollout_SPS": steps / rollout_time,
             "charts/update_seconds": update_time,
