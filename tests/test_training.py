@@ -506,3 +506,19 @@ def test_ann_learns_to_finish_grid_small_s(tmp_path: Path) -> None:
     assert trainer.progress.global_step >= 120_000
     assert trainer.progress.finishes > 0, trainer.progress
     assert trainer.progress.first_finish_step > 0
+
+
+@pytest.mark.parametrize("anneal", [True, False])
+def test_entropy_coefficient_anneals_with_the_learning_rate(tmp_path: Path, anneal: bool) -> None:
+    """With ppo.anneal_ent the entropy coefficient of iteration i is ent_coef * (1 - (i-1)/N),
+    exactly like the learning rate; without it, it stays at ent_coef."""
+    cfg = tiny_config(total_steps=4 * BATCH, extra=[f"ppo.anneal_ent={str(anneal).lower()}"])
+    run_dir = tmp_path / "run"
+    train(cfg, run_dir)
+    rows = metrics(run_dir)
+    assert len(rows) == 4
+    for i, row in enumerate(rows):
+        frac = 1.0 - i / 4
+        assert row["charts/learning_rate"] == pytest.approx(frac * cfg.ppo.learning_rate)
+        expected = frac * cfg.ppo.ent_coef if anneal else cfg.ppo.ent_coef
+        assert row["charts/ent_coef"] == pytest.approx(expected)
