@@ -89,14 +89,19 @@ def test_distance_falls_steadily_along_the_centreline_around_a_corner():
     assert np.all(np.diff(d) < 0.0), np.diff(d)
 
 
-def test_no_way_back_through_the_checkpoint_just_passed():
-    """On small_S, field 2 (the second checkpoint) is undefined behind checkpoint 1: the start
-    area is reachable only back through that line, which the distance may not use."""
+def test_behind_the_checkpoint_just_passed_the_way_leads_back_across_it():
+    """On small_S, field 2 (the second checkpoint) at the start area, behind checkpoint 1:
+    the distance is the way back across checkpoint 1 (longer than the way to checkpoint 1
+    itself) and the route points to checkpoint 1, so a kart that overshoots is not lost."""
     track = load_track("small_S")
     field = geodesic_field(track)
     sx, sy = track.spawn_position
-    assert math.isfinite(field.distance(0, sx, sy))
-    assert math.isnan(field.distance(1, sx, sy))
+    d0, d1 = field.distance(0, sx, sy), field.distance(1, sx, sy)
+    assert math.isfinite(d0) and math.isfinite(d1)
+    assert d1 > d0 + 100.0
+    r0, r1 = field.route(0, sx, sy), field.route(1, sx, sy)
+    assert r0 is not None and r1 is not None
+    assert r0[0] * r1[0] + r0[1] * r1[1] > 0.9
 
 
 def test_checkpoint_without_room_for_the_kart_is_refused():

@@ -18,7 +18,8 @@ clearance can cross a wall, because a wall crossing a move of length L would lea
 within L/2 of it. The sources of field k are the road cells where the kart touches
 checkpoint line k (within one kart radius of it), and moves across line k-1 are removed, so
 the distance never takes a way back through the checkpoint just passed (it would on a loop
-whose checkpoints are more than half a lap apart).
+whose checkpoints are more than half a lap apart); cells behind that line then get the way
+back across it.
 """
 
 from __future__ import annotations
@@ -129,6 +130,22 @@ def _gradient(d: np.ndarray, cell: float) -> np.ndarray:
     return out
 
 
+def _extend(d: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Distances continued from the cells where ``d`` is finite (starting at their values)
+    over the edges (a, b, w): Dijkstra from one extra node joined to each of those cells by
+    an edge as long as its distance."""
+    n = d.shape[0]
+    reached = np.flatnonzero(np.isfinite(d))
+    graph = coo_matrix(
+        (
+            np.concatenate([w, d[reached] + 1e-9]),  # + 1e-9: a zero weight is no edge
+            (np.concatenate([a, np.full(reached.size, n)]), np.concatenate([b, reached])),
+        ),
+        shape=(n + 1, n + 1),
+    )
+    return dijkstra(graph.tocsr(), directed=False, indices=n)[:n]  # type: ignore[no-any-return]
+
+
 @functools.lru_cache(maxsize=8)
 def geodesic_field(track: Track, cell: float = CELL_PX) -> GeodesicField:
     """Compute (once per track and cell size) the geodesic distance fields of ``track``."""
@@ -176,24 +193,16 @@ def geodesic_field(track: Track, cell: float = CELL_PX) -> GeodesicField:
             prev = track.checkpoints[k - 1]
             keep = ~_crosses(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
         # The path itself runs where the kart centre can be (one radius from every wall).
-        on_road = keep & drive[a] & drive[b]
-        graph = coo_matrix((w[on_road], (a[on_road], b[on_road])), shape=(n, n)).tocsr()
-        d = dijkstra(graph, directed=False, indices=sources, min_only=True)
+        road = drive[a] & drive[b]
+        graph = coo_matrix((w[keep & road], (a[keep & road], b[keep & road])), shape=(n, n))
+        d = dijkstra(graph.tocsr(), directed=False, indices=sources, min_only=True)
+        # Behind the checkpoint just passed, the way leads back across it: a kart that
+        # overshoots still has a distance to shrink (and a direction to follow).
+        d = np.where(np.isfinite(d), d, _extend(d, a[road], b[road], w[road]))
         # The margin (free, but nearer a wall than the radius) takes the distance of the
         # nearest road cell plus the way there, so the bilinear lookup has four corners even
         # when the kart grazes a wall; it never shortens a path between road cells.
-        margin = keep & ~(drive[a] & drive[b])
-        reached = np.flatnonzero(np.isfinite(d))
-        graph = coo_matrix(
-            (
-                np.concatenate([w[margin], d[reached] + 1e-9]),
-                (np.concatenate([a[margin], np.full(reached.size, n)]),
-                 np.concatenate([b[margin], reached])),
-            ),
-            shape=(n + 1, n + 1),
-        ).tocsr()  # fmt: skip
-        d_margin = dijkstra(graph, directed=False, indices=n)[:n]
-        d = np.where(drive, d, d_margin)
+        d = np.where(drive, d, _extend(d, a[~road], b[~road], w[~road]))
         dist[k][free] = np.where(np.isinf(d), np.nan, d)
     grad = np.stack([_gradient(d, cell) for d in dist])
     return GeodesicField(origin=(float(xs[0]), float(ys[0])), cell=cell, dist=dist, grad=grad)
