@@ -29,6 +29,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
@@ -98,21 +99,33 @@ class GeodesicField:
         return (-gx / norm, -gy / norm)
 
     def _sample(self, grid: np.ndarray, x: float, y: float) -> float:
-        fx = (x - self.origin[0]) / self.cell
-        fy = (y - self.origin[1]) / self.cell
-        i, j = math.floor(fx), math.floor(fy)
-        tx, ty = fx - i, fy - j
-        rows, cols = grid.shape
-        total = weight = 0.0
-        for dj, di, w in ((0, 0, (1 - tx) * (1 - ty)), (0, 1, tx * (1 - ty)),
-                          (1, 0, (1 - tx) * ty), (1, 1, tx * ty)):  # fmt: skip
-            r, c = j + dj, i + di
+        return _bilinear(grid, self.origin[0], self.origin[1], self.cell, x, y)  # type: ignore[no-any-return]
+
+
+@njit(cache=True, nogil=True)
+def _bilinear(grid: np.ndarray, ox: float, oy: float, cell: float, x: float, y: float) -> float:
+    """Bilinear interpolation of ``grid`` (cell [0, 0] centred at (ox, oy)) at (x, y), over
+    the corners that are not NaN; NaN when none is."""
+    fx = (x - ox) / cell
+    fy = (y - oy) / cell
+    i = math.floor(fx)
+    j = math.floor(fy)
+    tx = fx - i
+    ty = fy - j
+    rows, cols = grid.shape
+    total = 0.0
+    weight = 0.0
+    for dj in range(2):
+        for di in range(2):
+            w = (tx if di else 1.0 - tx) * (ty if dj else 1.0 - ty)
+            r = j + dj
+            c = i + di
             if 0 <= r < rows and 0 <= c < cols and w > 0.0:
                 v = grid[r, c]
                 if v == v:  # not NaN
                     total += w * v
                     weight += w
-        return total / weight if weight > 0.0 else math.nan
+    return total / weight if weight > 0.0 else math.nan
 
 
 def _gradient(d: np.ndarray, cell: float) -> np.ndarray:
