@@ -11,6 +11,7 @@ from snnkart.envs.constants import KART_RADIUS_PX
 from snnkart.envs.gazebo import GazeboEnv
 from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.grid import GridEnv
+from snnkart.envs.steer import SteerEnv
 from snnkart.envs.tracks import Checkpoint, Track, TrackError, load_track, parse_track
 
 R = KART_RADIUS_PX
@@ -102,6 +103,68 @@ def test_behind_the_checkpoint_just_passed_the_way_leads_back_across_it():
     r0, r1 = field.route(0, sx, sy), field.route(1, sx, sy)
     assert r0 is not None and r1 is not None
     assert r0[0] * r1[0] + r0[1] * r1[1] > 0.9
+
+
+# The L with a first checkpoint diagonal across the corner square, from the inner corner
+# (300, 200) to the outer corner (400, 100); the finish line still crosses the south leg.
+L_TWO = make_track(
+    walls=[
+        [(0, 100), (400, 100), (400, 600)],
+        [(0, 200), (300, 200), (300, 600)],
+        [(0, 100), (0, 200)],
+    ],
+    checkpoints=[((300, 200), (400, 100)), ((300, 500), (400, 500))],
+    spawn=(60.0, 150.0),
+    name="L2",
+)
+
+
+def test_way_to_a_checkpoint_leads_to_where_the_lap_continues_best():
+    """Field k measures the way to line k along the route that continues best to the finish:
+    near the inner corner, where the kart touches line k, at most one kart radius (the route
+    reaches 0 where it leaves the band of touching positions beyond the line), and at the
+    outer corner that plus the extra length of the rest of the lap from there. So progress
+    towards a checkpoint cannot be bought by crossing it on the outside of a corner."""
+    field = geodesic_field(L_TWO)
+    inner = (320.0, 185.0)  # touching the diagonal near the inner corner
+    outer = (365.0, 135.0)  # touching it near the outer corner
+    d_inner, d_outer = field.distance(0, *inner), field.distance(0, *outer)
+    assert d_inner <= R + 1.0
+    # The rest of the lap from each point (field 1) differs by the same amount.
+    rest = field.distance(1, *outer) - field.distance(1, *inner)
+    assert rest > 30.0
+    assert d_outer - d_inner == pytest.approx(rest, abs=8.0)
+    # Along the east leg, the route aims below the centreline, at the inner end of the line.
+    route = field.route(0, 200.0, 150.0)
+    assert route is not None and route[1] > 0.1
+
+
+def test_steer_route_bends_no_tighter_than_the_car_can_turn():
+    """The steer car cannot turn on the spot: its route keeps its turning radius (0.36 m at
+    full lock), not just its body radius, from the walls, so around the L's inner corner the
+    path is a quarter circle of that radius, which the car can drive. Vehicles that turn on
+    the spot (gazebo) keep the body radius."""
+    steer, gazebo = SteerEnv(track=L_TRACK), GazeboEnv(track=L_TRACK)
+    p = steer.config.physics
+    c = p.wheelbase_m / math.tan(math.radians(p.max_steer_deg)) * 100.0
+    assert steer.route_clearance() == pytest.approx(c) and c > R + 10.0
+    assert gazebo.route_clearance() == R
+    x, y, target_y = 100.0, 150.0, 500.0 - R
+    around = math.hypot(300.0 - x, 200.0 - c - y) + math.pi / 2 * c + (target_y - 200.0)
+    assert steer._geodesic.distance(0, x, y) == pytest.approx(around, rel=0.03)
+    # The route passes the corner at least the turning radius from it.
+    x, y = 100.0, 150.0
+    closest = math.inf
+    for _ in range(400):
+        r = steer._geodesic.route(0, x, y)
+        if r is None:
+            break
+        x, y = x + 2.0 * r[0], y + 2.0 * r[1]
+        closest = min(closest, math.hypot(x - 300.0, y - 200.0))
+    assert y > 450.0  # reached the finish
+    assert closest == pytest.approx(c, abs=4.0)
+    with pytest.raises(ValueError, match="less than the kart radius"):
+        geodesic_field(L_TRACK, clearance=R - 1.0)
 
 
 def test_checkpoint_without_room_for_the_kart_is_refused():

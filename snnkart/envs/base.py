@@ -128,7 +128,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._goals = [(*cp.a, *cp.b) for cp in self.track.checkpoints]
         self._n_checkpoints = len(self._goals)
         self._dist_scale = self.config.checkpoint_distance_scale_m * PIXELS_PER_METRE
-        self._geodesic = geodesic_field(self.track)
+        self._geodesic = geodesic_field(self.track, clearance=self.route_clearance())
         self.max_episode_steps = self.config.max_episode_steps or math.ceil(
             self.track.time_limit_s * self._time_limit_factor() / DT
         )
@@ -184,6 +184,11 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
     def _time_limit_factor(self) -> float:
         return 1.0
+
+    def route_clearance(self) -> float:
+        """Distance (px) the route, and so the progress potential, keeps from the walls: the
+        kart radius for vehicles that can turn on the spot."""
+        return KART_RADIUS_PX
 
     @property
     def speed_m_s(self) -> float:

@@ -10,7 +10,11 @@ stretch between two checkpoints it sums to the distance driven towards the next 
 The field is computed once per track (and cached) by Dijkstra's algorithm on a grid of
 ``CELL_PX`` cells with 16-neighbour moves (within ~1 % of Euclidean length in open space).
 Paths run where the kart centre can be: at least one kart radius from every wall, so the way
-around a corner is one the kart can drive, not one that scrapes the corner. Cells nearer a
+around a corner is one the kart can drive, not one that scrapes the corner. For a car that
+cannot turn on the spot (steer) the clearance is its turning radius instead: a shortest path
+bends only around wall corners, on circles of the clearance's radius, so the car can follow
+it; a route that hugs a corner more tightly than the car can turn led policies into spots
+from which the next turn could not be made. Cells nearer a
 wall, down to ``FREE_CLEARANCE_PX``, form a margin that takes its value from the nearest
 road cell (plus the way there) without shortening any path; they give the bilinear lookup
 four corners when the kart grazes a wall. No move between two cells of at least that
@@ -20,6 +24,13 @@ checkpoint line k (within one kart radius of it), and moves across line k-1 are 
 the distance never takes a way back through the checkpoint just passed (it would on a loop
 whose checkpoints are more than half a lap apart); cells behind that line then get the way
 back across it.
+
+The fields are chained from the finish line backwards: the sources of field k start at the
+remaining path length to the finish from there (field k+1), so field k is the way to line k
+along the route that continues best, measured from the best crossing. Without the chaining,
+the way to a checkpoint set diagonally across a corner led to the line's nearest point, often
+its outer end, where a car that cannot turn on the spot (steer) arrives too fast and too
+wide to make the next turn; policies learned to reach it and then stop.
 """
 
 from __future__ import annotations
@@ -30,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy.ndimage import distance_transform_edt
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
@@ -160,16 +172,26 @@ def _extend(d: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.nd
 
 
 @functools.lru_cache(maxsize=8)
-def geodesic_field(track: Track, cell: float = CELL_PX) -> GeodesicField:
-    """Compute (once per track and cell size) the geodesic distance fields of ``track``."""
+def geodesic_field(
+    track: Track, cell: float = CELL_PX, clearance: float = KART_RADIUS_PX
+) -> GeodesicField:
+    """Compute (once per track, cell size and clearance) the geodesic distance fields of
+    ``track``. Paths keep ``clearance`` (px, at least the kart radius) from every wall; a
+    shortest path bends only around wall corners, on circles of that radius, so a vehicle
+    whose turning radius is ``clearance`` can drive it (see :meth:`KartEnv.route_clearance`).
+    """
+    if clearance < KART_RADIUS_PX:
+        raise ValueError(
+            f"clearance {clearance} px is less than the kart radius {KART_RADIUS_PX} px"
+        )
     xmin, ymin, xmax, ymax = track.bounds
     xs = np.arange(xmin, xmax + cell, cell)
     ys = np.arange(ymin, ymax + cell, cell)
     gx, gy = np.meshgrid(xs, ys)  # [rows, cols]
-    clearance = np.full(gx.shape, np.inf)
+    wall_distance = np.full(gx.shape, np.inf)
     for seg in track.segments:
-        np.minimum(clearance, _segment_distance(gx, gy, tuple(seg)), out=clearance)
-    free = clearance >= FREE_CLEARANCE_PX
+        np.minimum(wall_distance, _segment_distance(gx, gy, tuple(seg)), out=wall_distance)
+    free = wall_distance >= FREE_CLEARANCE_PX
     index = np.full(gx.shape, -1, dtype=np.int64)
     index[free] = np.arange(int(free.sum()))
     rows, cols = gx.shape
@@ -187,35 +209,75 @@ def geodesic_field(track: Track, cell: float = CELL_PX) -> GeodesicField:
     a = np.concatenate([e[0] for e in edges])
     b = np.concatenate([e[1] for e in edges])
     w = np.concatenate([np.full(e[0].shape, e[2]) for e in edges])
-    fx, fy, fc = gx[free], gy[free], clearance[free]
-    drive = fc >= KART_RADIUS_PX
+    fx, fy, fc = gx[free], gy[free], wall_distance[free]
+    drive = fc >= clearance
+
+    # Each margin cell's nearest road cell (index among the free cells) and the way there.
+    drive_grid = np.zeros(gx.shape, dtype=bool)
+    drive_grid[free] = drive
+    if not drive_grid.any():
+        raise TrackError(
+            f"track {track.name!r} ({track.source}): nowhere {clearance:.1f} px from every "
+            "wall (the kart's radius, or the car's turning radius in steer); widen the track"
+        )
+    steps, (ri, ci) = distance_transform_edt(~drive_grid, return_indices=True)
+    margin_cells = np.flatnonzero(~drive)
+    mr, mc = np.nonzero(free & ~drive_grid)  # the same cells, in the same (row-major) order
+    nearest = index[ri[mr, mc], ci[mr, mc]]
+    extra = steps[mr, mc] * cell
+    blocked = np.zeros(margin_cells.shape, dtype=bool)
+    for seg in track.segments:
+        blocked |= _crosses(gx[mr, mc], gy[mr, mc], fx[nearest], fy[nearest], tuple(seg))
 
     n = int(free.sum())
     dist = np.full((len(track.checkpoints), rows, cols), np.nan)
-    for k, cp in enumerate(track.checkpoints):
+    # From the finish line backwards: the total path length to the finish through the
+    # remaining checkpoints in order, so the way to line k leads to where the rest of the
+    # lap continues best (the inside of the next corner), not to the nearest point of line k.
+    to_finish = np.zeros(n)
+    for k in reversed(range(len(track.checkpoints))):
+        cp = track.checkpoints[k]
         seg_k = (*cp.a, *cp.b)
         sources = np.flatnonzero((_segment_distance(fx, fy, seg_k) <= KART_RADIUS_PX) & drive)
         if sources.size == 0:
             raise TrackError(
                 f"track {track.name!r} ({track.source}): checkpoint {k + 1} leaves no room for "
-                f"the kart to touch it without touching a wall ({KART_RADIUS_PX:.1f} px "
-                "kart radius); move the line away from the walls"
+                f"the kart to touch it {clearance:.1f} px from every wall (the kart's radius, "
+                "or the car's turning radius in steer); move the line away from the walls or "
+                "widen the track there"
             )
         keep = np.ones(a.shape, dtype=bool)
         if k > 0:
             prev = track.checkpoints[k - 1]
             keep = ~_crosses(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
-        # The path itself runs where the kart centre can be (one radius from every wall).
+        # The path itself runs where the kart centre can be (``clearance`` from every wall).
         road = drive[a] & drive[b]
-        graph = coo_matrix((w[keep & road], (a[keep & road], b[keep & road])), shape=(n, n))
-        d = dijkstra(graph.tocsr(), directed=False, indices=sources, min_only=True)
+        start = np.full(n, np.inf)
+        start[sources] = to_finish[sources]
+        if not np.isfinite(start[sources]).any():
+            raise TrackError(
+                f"track {track.name!r} ({track.source}): no drivable way from checkpoint "
+                f"{k + 1} to checkpoint {k + 2}; check the walls between them"
+            )
+        ok = keep & road
+        d = _extend(start, a[ok], b[ok], w[ok])
         # Behind the checkpoint just passed, the way leads back across it: a kart that
         # overshoots still has a distance to shrink (and a direction to follow).
         d = np.where(np.isfinite(d), d, _extend(d, a[road], b[road], w[road]))
-        # The margin (free, but nearer a wall than the radius) takes the distance of the
-        # nearest road cell plus the way there, so the bilinear lookup has four corners even
-        # when the kart grazes a wall; it never shortens a path between road cells.
-        d = np.where(drive, d, _extend(d, a[~road], b[~road], w[~road]))
+        # The margin (free, but nearer a wall than the clearance) takes the distance of its
+        # nearest road cell plus the straight way there, so the bilinear lookup has four
+        # corners even when the kart grazes a wall. No way runs along the margin: it would
+        # cut corners more tightly than the road. Where a wall lies between a margin cell
+        # and its nearest road cell, the way through the margin is taken instead.
+        near = d[nearest] + extra
+        if blocked.any():
+            near[blocked] = _extend(d, a[~road], b[~road], w[~road])[margin_cells[blocked]]
+        d[margin_cells] = near
+        to_finish = d
+        # Stored relative to the best crossing of line k: the path length to line k along
+        # the route that continues best; 0 where that route leaves the band of positions
+        # that touch line k (about one kart radius where the kart first touches it).
+        d = d - to_finish[sources].min()
         dist[k][free] = np.where(np.isinf(d), np.nan, d)
     grad = np.stack([_gradient(d, cell) for d in dist])
     return GeodesicField(origin=(float(xs[0]), float(ys[0])), cell=cell, dist=dist, grad=grad)

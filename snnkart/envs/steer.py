@@ -10,7 +10,7 @@ from gymnasium import spaces
 
 from snnkart.envs.base import KartEnv, ObsField
 from snnkart.envs.config import SteerConfig
-from snnkart.envs.constants import DT, PIXELS_PER_METRE
+from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE
 
 _THROTTLE = (-1.0, 0.0, 1.0)  # brake, coast, throttle
 _STEER = (-1.0, 0.0, 1.0)  # left, straight, right
@@ -42,7 +42,7 @@ class SteerEnv(KartEnv[SteerConfig]):
     | n+1 | steering | [-1, 1] | steering angle / steering lock (positive = right) |
     | n+2 | heading_cos | [-1, 1] | cos of the heading (world frame, y down) |
     | n+3 | heading_sin | [-1, 1] | sin of the heading |
-    | n+4 | checkpoint_cos | [-1, 1] | cos of the direction in which the shortest drivable path to the next checkpoint line leaves (around corners), relative to the heading |
+    | n+4 | checkpoint_cos | [-1, 1] | cos of the direction in which the shortest drivable path to the next checkpoint line leaves (around corners, one turning radius from the walls; continuing best to the finish), relative to the heading |
     | n+5 | checkpoint_sin | [-1, 1] | sin of that direction (positive = to the right) |
     | n+6 | checkpoint_distance | [0, 1] | min(path length to the line / checkpoint_distance_scale_m, 1) (geodesic; `snnkart/envs/geodesic.py`) |
 
@@ -127,6 +127,13 @@ class SteerEnv(KartEnv[SteerConfig]):
         out[start + 2] = math.cos(self._heading)
         out[start + 3] = math.sin(self._heading)
         return start + 4
+
+    def route_clearance(self) -> float:
+        """The turning radius at full lock (0.36 m by default), or the kart radius if larger:
+        the route then bends no tighter than the car can turn."""
+        p = self.config.physics
+        turning = p.wheelbase_m / math.tan(p.max_steer_rad) * PIXELS_PER_METRE
+        return max(KART_RADIUS_PX, turning)
 
     def _extra_reward_terms(self, terms: dict[str, float]) -> None:
         terms["steering"] = -self.config.reward.steering * abs(self._delta) / self._lock
