@@ -619,6 +619,9 @@ def _bad_input(case: str, plain: Path, tmp: Path) -> tuple[Path, list[str], list
     if case == "moon":
         _edit_manifest(target, lambda data: data["env"].update(env="moon"))
         return target, [], ["unknown env 'moon'"]
+    if case == "old-revision":
+        _edit_manifest(target, lambda data: data["env"].pop("revision"))
+        return target, [], ["env revision 1 or 2", "retrain the run and export it again"]
     if case == "backend":
         return target, ["--backend", "loihi3"], ["unknown backend 'loihi3'"]
     if case == "precision-lava":
@@ -630,7 +633,7 @@ def _bad_input(case: str, plain: Path, tmp: Path) -> tuple[Path, list[str], list
 
 BAD_CASES = [
     "missing", "truncated", "text", "env-obs-size", "manifest-obs-size", "nan", "moon",
-    "backend", "precision-lava", "precision-ref",
+    "old-revision", "backend", "precision-lava", "precision-ref",
 ]  # fmt: skip
 
 

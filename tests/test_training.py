@@ -24,8 +24,16 @@ import torch
 from typer.testing import CliRunner
 
 from snnkart.cli import app
+from snnkart.envs.base import ENV_REVISION
 from snnkart.evaluate import EVAL_SCHEMA, EvalSummary, run_episodes
-from snnkart.rl.checkpoint import CHECKPOINT_SCHEMA, CheckpointError, env_spec, spec_hash
+from snnkart.rl.checkpoint import (
+    CHECKPOINT_SCHEMA,
+    CheckpointError,
+    env_spec,
+    load_checkpoint,
+    save_checkpoint,
+    spec_hash,
+)
 from snnkart.rl.config import ConfigError, TrainConfig, load_config
 from snnkart.rl.ppo import RunError, Trainer, make_env
 from snnkart.rl.run import TorchPredictor, load_run
@@ -374,6 +382,22 @@ def test_checkpoint_for_another_observation_size(
     assert "checkpoint.pt" in msg
     # the original still loads
     assert load_run(run_dir).config.env == "grid"
+
+
+def test_checkpoint_from_an_older_env_revision_is_refused(
+    tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
+) -> None:
+    """The observation layout alone does not show that its meaning changed: a checkpoint
+    saved before the current env revision is refused, with what to do."""
+    run_dir, _ = trained["ann"]
+    other = tmp_path / "old"
+    shutil.copytree(run_dir, other)
+    state, meta = load_checkpoint(other / "checkpoint.pt")
+    meta["env_spec"]["revision"] = ENV_REVISION - 1
+    meta["env_spec_hash"] = spec_hash(meta["env_spec"])
+    save_checkpoint(other / "checkpoint.pt", state, meta)
+    with pytest.raises(CheckpointError, match=f"revision {ENV_REVISION - 1}.*retrain"):
+        load_run(other)
 
 
 def test_existing_run_dir_without_resume(

@@ -32,6 +32,17 @@ from snnkart.envs.tracks import Track, load_track
 _KART, _WALL, _CHECKPOINT = 1, 2, 3
 ACTION_MODES = ("discrete", "continuous")
 
+ENV_REVISION = 3
+"""Revision of what the observations and rewards mean, recorded with every checkpoint and
+NIR export, so a policy is never run on observations whose meaning changed under it (the
+layout and bounds alone do not show that):
+
+1. progress and the checkpoint observation measured straight at the next checkpoint line;
+2. both along the shortest drivable path (geodesic); heading reward term;
+3. the path continues best to the finish (fields chained backwards); steer's path keeps the
+   car's turning radius from the walls.
+"""
+
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
 
 
