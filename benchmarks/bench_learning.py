@@ -25,7 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from benchmarks.common import machine_info, results_path
+from benchmarks.common import git_commit, machine_info, results_path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
@@ -35,6 +35,14 @@ def one_run(
     env: str, policy: str, seed: int, steps: int, runs: Path, sets: list[str]
 ) -> dict[str, Any]:
     run_dir = runs / f"{env}-{policy}-s{seed}"
+    # Resume an interrupted run only if the same code made it; set an older one aside.
+    marker = run_dir / "bench_commit"
+    commit = git_commit()
+    if run_dir.exists() and (not marker.is_file() or marker.read_text().strip() != commit):
+        old = marker.read_text().strip() if marker.is_file() else "unknown"
+        run_dir.rename(run_dir.with_name(f"{run_dir.name}.{old}.{int(time.time())}"))
+    run_dir.mkdir(parents=True, exist_ok=True)
+    marker.write_text(commit + "\n")
     start = time.perf_counter()
     subprocess.run(
         [*SNNKART, "train", "--env", env, "--policy", policy, "--track", "small_S",
