@@ -105,40 +105,6 @@ def test_behind_the_checkpoint_just_passed_the_way_leads_back_across_it():
     assert r0[0] * r1[0] + r0[1] * r1[1] > 0.9
 
 
-# The L with a first checkpoint diagonal across the corner square, from the inner corner
-# (300, 200) to the outer corner (400, 100); the finish line still crosses the south leg.
-L_TWO = make_track(
-    walls=[
-        [(0, 100), (400, 100), (400, 600)],
-        [(0, 200), (300, 200), (300, 600)],
-        [(0, 100), (0, 200)],
-    ],
-    checkpoints=[((300, 200), (400, 100)), ((300, 500), (400, 500))],
-    spawn=(60.0, 150.0),
-    name="L2",
-)
-
-
-def test_way_to_a_checkpoint_leads_to_where_the_lap_continues_best():
-    """Field k measures the way to line k along the route that continues best to the finish:
-    near the inner corner, where the kart touches line k, at most one kart radius (the route
-    reaches 0 where it leaves the band of touching positions beyond the line), and at the
-    outer corner that plus the extra length of the rest of the lap from there. So progress
-    towards a checkpoint cannot be bought by crossing it on the outside of a corner."""
-    field = geodesic_field(L_TWO)
-    inner = (320.0, 185.0)  # touching the diagonal near the inner corner
-    outer = (365.0, 135.0)  # touching it near the outer corner
-    d_inner, d_outer = field.distance(0, *inner), field.distance(0, *outer)
-    assert d_inner <= R + 1.0
-    # The rest of the lap from each point (field 1) differs by the same amount.
-    rest = field.distance(1, *outer) - field.distance(1, *inner)
-    assert rest > 30.0
-    assert d_outer - d_inner == pytest.approx(rest, abs=8.0)
-    # Along the east leg, the route aims below the centreline, at the inner end of the line.
-    route = field.route(0, 200.0, 150.0)
-    assert route is not None and route[1] > 0.1
-
-
 def test_steer_route_bends_no_tighter_than_the_car_can_turn():
     """The steer car cannot turn on the spot: its route keeps its turning radius (0.36 m at
     full lock), not just its body radius, from the walls, so around the L's inner corner the

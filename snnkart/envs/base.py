@@ -39,8 +39,7 @@ layout and bounds alone do not show that):
 
 1. progress and the checkpoint observation measured straight at the next checkpoint line;
 2. both along the shortest drivable path (geodesic); heading reward term;
-3. the path continues best to the finish (fields chained backwards); steer's path keeps the
-   car's turning radius from the walls.
+3. steer's path keeps the car's turning radius from the walls.
 """
 
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)

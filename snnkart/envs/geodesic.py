@@ -9,28 +9,25 @@ stretch between two checkpoints it sums to the distance driven towards the next 
 
 The field is computed once per track (and cached) by Dijkstra's algorithm on a grid of
 ``CELL_PX`` cells with 16-neighbour moves (within ~1 % of Euclidean length in open space).
-Paths run where the kart centre can be: at least one kart radius from every wall, so the way
-around a corner is one the kart can drive, not one that scrapes the corner. For a car that
-cannot turn on the spot (steer) the clearance is its turning radius instead: a shortest path
-bends only around wall corners, on circles of the clearance's radius, so the car can follow
-it; a route that hugs a corner more tightly than the car can turn led policies into spots
-from which the next turn could not be made. Cells nearer a
-wall, down to ``FREE_CLEARANCE_PX``, form a margin that takes its value from the nearest
-road cell (plus the way there) without shortening any path; they give the bilinear lookup
-four corners when the kart grazes a wall. No move between two cells of at least that
-clearance can cross a wall, because a wall crossing a move of length L would leave one end
-within L/2 of it. The sources of field k are the road cells where the kart touches
-checkpoint line k (within one kart radius of it), and moves across line k-1 are removed, so
-the distance never takes a way back through the checkpoint just passed (it would on a loop
-whose checkpoints are more than half a lap apart); cells behind that line then get the way
-back across it.
 
-The fields are chained from the finish line backwards: the sources of field k start at the
-remaining path length to the finish from there (field k+1), so field k is the way to line k
-along the route that continues best, measured from the best crossing. Without the chaining,
-the way to a checkpoint set diagonally across a corner led to the line's nearest point, often
-its outer end, where a car that cannot turn on the spot (steer) arrives too fast and too
-wide to make the next turn; policies learned to reach it and then stop.
+Paths run on the *road*: where the kart centre is at least a clearance from every wall, so
+the way around a corner is one the vehicle can drive, not one that scrapes the corner. The
+clearance is the kart radius, or for a car that cannot turn on the spot (steer) its turning
+radius: a shortest path bends only around wall corners, on circles of the clearance's
+radius, so the car can follow it. A route that hugged corners more tightly than the car can
+turn led steer policies into spots from which the next turn could not be made.
+
+Cells nearer a wall, down to ``FREE_CLEARANCE_PX``, form a *margin*: each takes the value of
+its nearest road cell plus the straight way there (or, where a wall lies in between, the way
+through the margin), so the bilinear lookup has four corners even when the kart grazes a
+wall, and no way along the margin cuts a corner more tightly than the road. No move between
+two cells of at least that clearance can cross a wall, because a wall crossing a move of
+length L would leave one end within L/2 of it.
+
+The sources of field k are the road cells where the kart touches checkpoint line k (within
+one kart radius of it), and moves across line k-1 are removed, so the distance never takes a
+way back through the checkpoint just passed (it would on a loop whose checkpoints are more
+than half a lap apart); cells behind that line then get the way back across it.
 """
 
 from __future__ import annotations
@@ -231,12 +228,7 @@ def geodesic_field(
 
     n = int(free.sum())
     dist = np.full((len(track.checkpoints), rows, cols), np.nan)
-    # From the finish line backwards: the total path length to the finish through the
-    # remaining checkpoints in order, so the way to line k leads to where the rest of the
-    # lap continues best (the inside of the next corner), not to the nearest point of line k.
-    to_finish = np.zeros(n)
-    for k in reversed(range(len(track.checkpoints))):
-        cp = track.checkpoints[k]
+    for k, cp in enumerate(track.checkpoints):
         seg_k = (*cp.a, *cp.b)
         sources = np.flatnonzero((_segment_distance(fx, fy, seg_k) <= KART_RADIUS_PX) & drive)
         if sources.size == 0:
@@ -253,12 +245,7 @@ def geodesic_field(
         # The path itself runs where the kart centre can be (``clearance`` from every wall).
         road = drive[a] & drive[b]
         start = np.full(n, np.inf)
-        start[sources] = to_finish[sources]
-        if not np.isfinite(start[sources]).any():
-            raise TrackError(
-                f"track {track.name!r} ({track.source}): no drivable way from checkpoint "
-                f"{k + 1} to checkpoint {k + 2}; check the walls between them"
-            )
+        start[sources] = 0.0
         ok = keep & road
         d = _extend(start, a[ok], b[ok], w[ok])
         # Behind the checkpoint just passed, the way leads back across it: a kart that
@@ -273,11 +260,7 @@ def geodesic_field(
         if blocked.any():
             near[blocked] = _extend(d, a[~road], b[~road], w[~road])[margin_cells[blocked]]
         d[margin_cells] = near
-        to_finish = d
-        # Stored relative to the best crossing of line k: the path length to line k along
-        # the route that continues best; 0 where that route leaves the band of positions
-        # that touch line k (about one kart radius where the kart first touches it).
-        d = d - to_finish[sources].min()
+        d = d - d[sources].min()  # 0 on the sources (less _extend's 1e-9 offset)
         dist[k][free] = np.where(np.isinf(d), np.nan, d)
     grad = np.stack([_gradient(d, cell) for d in dist])
     return GeodesicField(origin=(float(xs[0]), float(ys[0])), cell=cell, dist=dist, grad=grad)

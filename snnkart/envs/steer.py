@@ -42,7 +42,7 @@ class SteerEnv(KartEnv[SteerConfig]):
     | n+1 | steering | [-1, 1] | steering angle / steering lock (positive = right) |
     | n+2 | heading_cos | [-1, 1] | cos of the heading (world frame, y down) |
     | n+3 | heading_sin | [-1, 1] | sin of the heading |
-    | n+4 | checkpoint_cos | [-1, 1] | cos of the direction in which the shortest drivable path to the next checkpoint line leaves (around corners, one turning radius from the walls; continuing best to the finish), relative to the heading |
+    | n+4 | checkpoint_cos | [-1, 1] | cos of the direction in which the shortest drivable path to the next checkpoint line leaves (around corners, one turning radius from the walls), relative to the heading |
     | n+5 | checkpoint_sin | [-1, 1] | sin of that direction (positive = to the right) |
     | n+6 | checkpoint_distance | [0, 1] | min(path length to the line / checkpoint_distance_scale_m, 1) (geodesic; `snnkart/envs/geodesic.py`) |
 
