@@ -536,7 +536,11 @@ def test_ann_learns_to_finish_grid_small_s(tmp_path: Path) -> None:
 def test_entropy_coefficient_anneals_with_the_learning_rate(tmp_path: Path, anneal: bool) -> None:
     """With ppo.anneal_ent the entropy coefficient of iteration i is ent_coef * (1 - (i-1)/N),
     exactly like the learning rate; without it, it stays at ent_coef."""
-    cfg = tiny_config(total_steps=4 * BATCH, extra=[f"ppo.anneal_ent={str(anneal).lower()}"])
+    cfg = tiny_config(
+        total_steps=4 * BATCH,
+        extra=["ppo.ent_coef=0.01", f"ppo.anneal_ent={str(anneal).lower()}"],
+    )
+    assert cfg.ppo.ent_coef == 0.01
     run_dir = tmp_path / "run"
     train(cfg, run_dir)
     rows = metrics(run_dir)
@@ -546,3 +550,24 @@ def test_entropy_coefficient_anneals_with_the_learning_rate(tmp_path: Path, anne
         assert row["charts/learning_rate"] == pytest.approx(frac * cfg.ppo.learning_rate)
         expected = frac * cfg.ppo.ent_coef if anneal else cfg.ppo.ent_coef
         assert row["charts/ent_coef"] == pytest.approx(expected)
+
+
+@pytest.mark.parametrize(
+    ("env", "policy", "ent_coef", "learning_rate"),
+    [
+        ("grid", "ann", 0.0, 3e-4), ("grid", "snn", 0.0, 1e-3),
+        ("gazebo", "ann", 0.02, 1e-3), ("gazebo", "snn", 0.02, 1e-3),
+        ("steer", "ann", 0.02, 3e-4), ("steer", "snn", 0.01, 1e-3),
+    ],
+)  # fmt: skip
+def test_defaults_per_env_and_policy_yield_to_the_user(
+    env: str, policy: str, ent_coef: float, learning_rate: float
+) -> None:
+    """The measured per-env defaults apply where the user set nothing, and only there."""
+    cfg = load_config(overrides={"env": env, "policy": policy})
+    assert cfg.ppo.ent_coef == ent_coef
+    assert cfg.ppo.learning_rate == learning_rate
+    assert cfg.ann.hidden == ((64, 64) if policy == "ann" else (128, 128))
+    mine = load_config(overrides={"env": env, "policy": policy}, sets=["ppo.ent_coef=0.005"])
+    assert mine.ppo.ent_coef == 0.005
+    assert mine.ppo.learning_rate == learning_rate
