@@ -105,11 +105,12 @@ ENV_POLICY_DEFAULTS: dict[tuple[str, str], dict[str, dict[str, Any]]] = {
     ("gazebo", "ann"): {"ppo": {"learning_rate": 1e-3, "ent_coef": 0.02}},
     ("gazebo", "snn"): {"ppo": {"ent_coef": 0.02}},
     # The steer ANN stopped short of the first hairpin in 2 of 3 seeds at 0.01 and finished
-    # it in both at 0.02 (benchmarks/results/bench_learning-54afbe7-steer-ann-ent0.02.json).
+    # it in both at 0.02 (benchmarks/results/bench_learning-54afbe7-steer-ann-ent0.02.json;
+    # 3/3 in bench_learning-d87ccc1).
     ("steer", "ann"): {"ppo": {"ent_coef": 0.02}},
     # Grid's impulse actions explore enough without an entropy bonus, and with one the
     # policy stays a mixture whose argmax clips corners (eval 75-85 % in 4 of 6 runs at 0.01;
-    # 95-100 % in all 4 re-run seeds at 0: benchmarks/results/bench_learning-*-grid-ent0*).
+    # 90-100 % in all 6 at 0: benchmarks/results/bench_learning-d87ccc1 and -ec5cb07).
     ("grid", "ann"): {"ppo": {"ent_coef": 0.0}},
     ("grid", "snn"): {"ppo": {"ent_coef": 0.0}},
 }
