@@ -133,6 +133,19 @@ def test_steer_route_bends_no_tighter_than_the_car_can_turn():
         geodesic_field(L_TRACK, clearance=R - 1.0)
 
 
+def test_route_clearance_can_be_set_in_the_env_config():
+    """``route_clearance_m`` widens the route of any env (gazebo here), and values below the
+    kart radius are refused by the config."""
+    wide = GazeboEnv(track=L_TRACK, config={"route_clearance_m": 0.3})
+    assert wide.route_clearance() == pytest.approx(30.0)
+    assert GazeboEnv(track=L_TRACK).route_clearance() == R
+    x, y, c = 100.0, 150.0, 30.0
+    around = math.hypot(300.0 - x, 200.0 - c - y) + math.pi / 2 * c + (500.0 - R - 200.0)
+    assert wide._geodesic.distance(0, x, y) == pytest.approx(around, rel=0.03)
+    with pytest.raises(ValueError, match="route_clearance_m"):
+        GazeboEnv(track=L_TRACK, config={"route_clearance_m": 0.1})
+
+
 def test_checkpoint_without_room_for_the_kart_is_refused():
     """A checkpoint line with no free space within one kart radius (a wall lies along it) is a
     track error that names the checkpoint, not a silent zero reward."""

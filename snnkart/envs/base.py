@@ -196,8 +196,14 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         return 1.0
 
     def route_clearance(self) -> float:
-        """Distance (px) the route, and so the progress potential, keeps from the walls: the
-        kart radius for vehicles that can turn on the spot."""
+        """Distance (px) the route, and so the progress potential, keeps from the walls:
+        ``config.route_clearance_m`` if set, else the vehicle's own default."""
+        if self.config.route_clearance_m is not None:
+            return max(self.config.route_clearance_m * PIXELS_PER_METRE, KART_RADIUS_PX)
+        return self._default_route_clearance()
+
+    def _default_route_clearance(self) -> float:
+        """The kart radius, for vehicles that can turn on the spot."""
         return KART_RADIUS_PX
 
     @property

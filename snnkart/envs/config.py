@@ -133,6 +133,13 @@ class EnvConfig(_Frozen):
         10.0, gt=0.0, description="distance observation = min(distance / scale, 1)"
     )
     render_scale: float = Field(0.8, gt=0.0, le=4.0, description="pixels on screen per track px")
+    route_clearance_m: float | None = Field(
+        None,
+        ge=0.192,
+        description="distance the route (and the progress potential) keeps from the walls, "
+        "m, at least the kart radius 0.192; default: the kart radius, or in steer the "
+        "car's turning radius",
+    )
 
 
 class GridConfig(EnvConfig):

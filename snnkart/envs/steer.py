@@ -128,7 +128,7 @@ class SteerEnv(KartEnv[SteerConfig]):
         out[start + 3] = math.sin(self._heading)
         return start + 4
 
-    def route_clearance(self) -> float:
+    def _default_route_clearance(self) -> float:
         """The turning radius at full lock (0.36 m by default), or the kart radius if larger:
         the route then bends no tighter than the car can turn."""
         p = self.config.physics

@@ -40,8 +40,21 @@ def env_spec(env: KartEnv) -> dict[str, Any]:
         "action_space": str(env.action_space),
         "observation_layout": [[f.name, f.size, f.low, f.high] for f in env.observation_layout],
         "obs_dim": int(env.observation_space.low.shape[0]),
-        "env_config": env.config.model_dump(mode="json"),
+        "env_config": _env_config(env),
     }
+
+
+_ADDED_UNSET = ("route_clearance_m",)
+"""Env config fields added after revision 3 began; left out of the spec while unset (None),
+so runs made before they existed still match."""
+
+
+def _env_config(env: KartEnv) -> dict[str, Any]:
+    data = env.config.model_dump(mode="json")
+    for key in _ADDED_UNSET:
+        if data.get(key) is None:
+            data.pop(key, None)
+    return data
 
 
 def spec_hash(spec: dict[str, Any]) -> str:
