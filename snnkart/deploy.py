@@ -42,16 +42,14 @@ class DeployError(ValueError):
 def make_policy_env(manifest: Manifest, env: str | None, track: str | None) -> Any:
     """The env the manifest describes (optionally another track or env), checked to fit."""
     from snnkart.envs import ENV_IDS, make, resolve_env_name
-    from snnkart.envs.base import ENV_REVISION
+    from snnkart.envs.base import revision_mismatch
     from snnkart.envs.tracks import TrackError
 
     spec = manifest.env
-    if spec.get("revision") != ENV_REVISION:
+    mismatch = revision_mismatch(spec.get("revision"))
+    if mismatch:
         raise DeployError(
-            f"the policy was exported from a run on env revision "
-            f"{spec.get('revision', '1 or 2')}, and this snnkart's envs are revision "
-            f"{ENV_REVISION}: what the observations mean has changed since "
-            "(snnkart.envs.base.ENV_REVISION); retrain the run and export it again"
+            f"the policy was exported from a run on {mismatch}; retrain the run and export it again"
         )
     name = env or spec.get("env")
     if name is None:

@@ -42,6 +42,19 @@ layout and bounds alone do not show that):
 3. steer's path keeps the car's turning radius from the walls.
 """
 
+
+def revision_mismatch(saved: Any) -> str | None:
+    """What to tell a user whose policy was made on env revision ``saved`` (None when it is
+    the current one); the caller adds what to do."""
+    if saved == ENV_REVISION:
+        return None
+    return (
+        f"env revision {saved if saved is not None else '1 or 2'}, and this snnkart's envs "
+        f"are revision {ENV_REVISION}: what the observations and rewards mean has changed "
+        "since (snnkart.envs.base.ENV_REVISION)"
+    )
+
+
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
 
 
@@ -199,7 +212,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         """Distance (px) the route, and so the progress potential, keeps from the walls:
         ``config.route_clearance_m`` if set, else the vehicle's own default."""
         if self.config.route_clearance_m is not None:
-            return max(self.config.route_clearance_m * PIXELS_PER_METRE, KART_RADIUS_PX)
+            return self.config.route_clearance_m * PIXELS_PER_METRE  # >= the radius
         return self._default_route_clearance()
 
     def _default_route_clearance(self) -> float:

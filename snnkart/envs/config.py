@@ -11,6 +11,8 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from snnkart.envs.constants import KART_RADIUS_M
+
 
 class _Frozen(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -135,10 +137,10 @@ class EnvConfig(_Frozen):
     render_scale: float = Field(0.8, gt=0.0, le=4.0, description="pixels on screen per track px")
     route_clearance_m: float | None = Field(
         None,
-        ge=0.192,
+        ge=KART_RADIUS_M,
         description="distance the route (and the progress potential) keeps from the walls, "
-        "m, at least the kart radius 0.192; default: the kart radius, or in steer the "
-        "car's turning radius",
+        f"m, at least the kart radius {KART_RADIUS_M}; default: the kart radius, or in steer "
+        "the car's turning radius",
     )
 
 

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from snnkart.envs.base import ENV_REVISION, KartEnv
+from snnkart.envs.base import ENV_REVISION, KartEnv, revision_mismatch
 from snnkart.io import atomic_path
 
 CHECKPOINT_SCHEMA = "snnkart/checkpoint/v1"
@@ -147,12 +147,9 @@ def check_compatible(meta: dict[str, Any], env: KartEnv, source: str) -> None:
     if meta.get("env_spec_hash") == spec_hash(spec):
         return
     diffs = []
-    if saved.get("revision") != ENV_REVISION:
-        raise CheckpointError(
-            f"{source} was trained on env revision {saved.get('revision', '1 or 2')}, and this "
-            f"snnkart's envs are revision {ENV_REVISION}: what the observations and rewards "
-            "mean has changed since (see snnkart.envs.base.ENV_REVISION); retrain the run"
-        )
+    mismatch = revision_mismatch(saved.get("revision"))
+    if mismatch:
+        raise CheckpointError(f"{source} was trained on {mismatch}; retrain the run")
     if saved.get("obs_dim") != spec["obs_dim"]:
         diffs.append(f"observation size {saved.get('obs_dim')} vs {spec['obs_dim']}")
     for key in ("env", "track", "track_sha256", "action_mode", "action_space",
