@@ -567,7 +567,12 @@ def test_defaults_per_env_and_policy_yield_to_the_user(
     cfg = load_config(overrides={"env": env, "policy": policy})
     assert cfg.ppo.ent_coef == ent_coef
     assert cfg.ppo.learning_rate == learning_rate
+    gazebo_snn = (env, policy) == ("gazebo", "snn")
+    assert (cfg.ppo.num_envs, cfg.ppo.num_steps) == ((16, 128) if gazebo_snn else (8, 256))
     assert cfg.ann.hidden == ((64, 64) if policy == "ann" else (128, 128))
     mine = load_config(overrides={"env": env, "policy": policy}, sets=["ppo.ent_coef=0.005"])
     assert mine.ppo.ent_coef == 0.005
     assert mine.ppo.learning_rate == learning_rate
+    assert mine.ppo.num_envs == cfg.ppo.num_envs
+    theirs = load_config(overrides={"env": env, "policy": policy}, sets=["ppo.num_envs=4"])
+    assert (theirs.ppo.num_envs, theirs.ppo.num_steps) == (4, cfg.ppo.num_steps)
