@@ -553,22 +553,21 @@ def test_entropy_coefficient_anneals_with_the_learning_rate(tmp_path: Path, anne
 
 
 @pytest.mark.parametrize(
-    ("env", "policy", "ent_coef", "learning_rate"),
+    ("env", "policy", "ent_coef", "learning_rate", "rollout"),
     [
-        ("grid", "ann", 0.0, 3e-4), ("grid", "snn", 0.0, 1e-3),
-        ("gazebo", "ann", 0.02, 1e-3), ("gazebo", "snn", 0.02, 1e-3),
-        ("steer", "ann", 0.02, 3e-4), ("steer", "snn", 0.01, 1e-3),
+        ("grid", "ann", 0.0, 3e-4, (8, 256)), ("grid", "snn", 0.0, 1e-3, (8, 256)),
+        ("gazebo", "ann", 0.02, 1e-3, (8, 256)), ("gazebo", "snn", 0.02, 1e-3, (16, 128)),
+        ("steer", "ann", 0.02, 3e-4, (8, 256)), ("steer", "snn", 0.01, 1e-3, (8, 256)),
     ],
 )  # fmt: skip
 def test_defaults_per_env_and_policy_yield_to_the_user(
-    env: str, policy: str, ent_coef: float, learning_rate: float
+    env: str, policy: str, ent_coef: float, learning_rate: float, rollout: tuple[int, int]
 ) -> None:
     """The measured per-env defaults apply where the user set nothing, and only there."""
     cfg = load_config(overrides={"env": env, "policy": policy})
     assert cfg.ppo.ent_coef == ent_coef
     assert cfg.ppo.learning_rate == learning_rate
-    gazebo_snn = (env, policy) == ("gazebo", "snn")
-    assert (cfg.ppo.num_envs, cfg.ppo.num_steps) == ((16, 128) if gazebo_snn else (8, 256))
+    assert (cfg.ppo.num_envs, cfg.ppo.num_steps) == rollout
     assert cfg.ann.hidden == ((64, 64) if policy == "ann" else (128, 128))
     mine = load_config(overrides={"env": env, "policy": policy}, sets=["ppo.ent_coef=0.005"])
     assert mine.ppo.ent_coef == 0.005

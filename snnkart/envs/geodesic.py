@@ -219,12 +219,14 @@ def geodesic_field(
         )
     steps, (ri, ci) = distance_transform_edt(~drive_grid, return_indices=True)
     margin_cells = np.flatnonzero(~drive)
-    mr, mc = np.nonzero(free & ~drive_grid)  # the same cells, in the same (row-major) order
-    nearest = index[ri[mr, mc], ci[mr, mc]]
-    extra = steps[mr, mc] * cell
+    nearest = index[ri[free][margin_cells], ci[free][margin_cells]]
+    extra = steps[free][margin_cells] * cell
+    mx, my = fx[margin_cells], fy[margin_cells]
     blocked = np.zeros(margin_cells.shape, dtype=bool)
     for seg in track.segments:
-        blocked |= _crosses(gx[mr, mc], gy[mr, mc], fx[nearest], fy[nearest], tuple(seg))
+        blocked |= _crosses(mx, my, fx[nearest], fy[nearest], tuple(seg))
+    # The path itself runs where the kart centre can be (``clearance`` from every wall).
+    road = drive[a] & drive[b]
 
     n = int(free.sum())
     dist = np.full((len(track.checkpoints), rows, cols), np.nan)
@@ -242,8 +244,6 @@ def geodesic_field(
         if k > 0:
             prev = track.checkpoints[k - 1]
             keep = ~_crosses(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
-        # The path itself runs where the kart centre can be (``clearance`` from every wall).
-        road = drive[a] & drive[b]
         start = np.full(n, np.inf)
         start[sources] = 0.0
         ok = keep & road
