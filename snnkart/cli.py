@@ -92,10 +92,15 @@ def demo(
         return
     if steps < 1 or lava_episodes < 1:
         _fail("--steps and --lava-episodes must be >= 1")
+    from snnkart import faults
     from snnkart.pipeline import run_pipeline
 
-    if run_pipeline(out, steps, lava_episodes) is None:
-        raise typer.Exit(130)
+    try:
+        finished = run_pipeline(out, steps, lava_episodes) is not None
+    except KeyboardInterrupt as exc:
+        _interrupted(exc, "run the same command again to continue where it stopped")
+    if not finished:
+        raise typer.Exit(128 + (faults.last_signal or 2))
 
 
 @app.command()
@@ -120,7 +125,7 @@ def train(
 ) -> None:
     """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.envs.tracks import TrackError
-    from snnkart.rl.checkpoint import CheckpointError
+    from snnkart.rl.checkpoint import CheckpointError, CheckpointWriteError
     from snnkart.rl.config import ConfigError, load_config
     from snnkart.train_cli import run_training
 
@@ -128,6 +133,7 @@ def train(
         "env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
         "action_mode": action_mode,
     }  # fmt: skip
+    run_dir = out or Path("runs")
     try:
         cfg = load_config(config, overrides, set_)
         if not resume:
@@ -136,9 +142,35 @@ def train(
             load_track(cfg.track)
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
         code = run_training(cfg, run_dir, resume=resume)
+    except KeyboardInterrupt as exc:  # before training began: nothing to save yet
+        _interrupted(exc, "stopped before training began; the run directory is as it was")
+    except (CheckpointWriteError, OSError) as exc:
+        _fail(_write_failure(exc, run_dir))
     except (ConfigError, TrackError, CheckpointError, RuntimeError) as exc:
         _fail(str(exc))
     raise typer.Exit(code)
+
+
+def _write_failure(exc: Exception, run_dir: Path) -> str:
+    """A failed write during training: what failed, and what of the run is still good."""
+    from snnkart.rl.checkpoint import CheckpointError, load_checkpoint
+
+    if isinstance(exc, OSError):
+        what = f"cannot write {exc.filename or 'to ' + str(run_dir)}: {exc.strerror or exc}"
+    else:
+        what = str(exc)
+    try:
+        _, meta = load_checkpoint(run_dir / "checkpoint.pt")
+        kept = (
+            f"the last good checkpoint ({run_dir / 'checkpoint.pt'}, step "
+            f"{meta.get('global_step', 0):,}) is intact"
+        )
+    except CheckpointError:
+        kept = "no checkpoint had been written yet"
+    return (
+        f"{what}; {kept}. Free space or make {run_dir} writable, then continue with: "
+        f"snnkart train --resume --out {run_dir}"
+    )
 
 
 @app.command(name="eval")
@@ -176,6 +208,8 @@ def eval_(
         _fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     try:
         run_eval(run_dir, episodes, seed, checkpoint, render, video, out)
+    except KeyboardInterrupt as exc:
+        _interrupted(exc, "no results were written")
     except (ConfigError, CheckpointError, ValueError) as exc:
         _fail(str(exc))
 
@@ -276,7 +310,7 @@ def _deploy_and_print(
     from snnkart.backends.lava_sim import LavaBackendError
     from snnkart.backends.network import UnsupportedGraphError
     from snnkart.backends.reference import NIRFileError
-    from snnkart.deploy import DeployError, run_deploy, summary_lines
+    from snnkart.deploy import DeployError, DeployWriteError, run_deploy, summary_lines
     from snnkart.export.manifest import ManifestError
 
     try:
@@ -288,6 +322,13 @@ def _deploy_and_print(
                 on_episode=lambda r: progress.advance(task),
                 on_step=lambda e: progress.advance(steps),
             )  # fmt: skip
+    except KeyboardInterrupt as exc:
+        stopped = "no Lava process is left running; " if backend == "lava-sim" else ""
+        _interrupted(exc, f"{stopped}no results were written")
+    except DeployWriteError as exc:
+        for line in summary_lines(exc.record):
+            typer.echo(line)
+        _fail(str(exc))
     except (
         NIRFileError, ManifestError, DeployError, LavaBackendError, UnsupportedGraphError
     ) as exc:  # fmt: skip
@@ -332,8 +373,28 @@ def report() -> None:
     _not_yet("report", "the energy report arrives with the energy issue")
 
 
+def _interrupted(exc: KeyboardInterrupt, what: str) -> NoReturn:
+    """Report Ctrl-C/SIGTERM and exit with the shell's status for it (130, 143)."""
+    from snnkart.faults import Interrupted
+
+    code = exc.exit_code if isinstance(exc, Interrupted) else 130
+    name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+    typer.secho(f"interrupted ({name}): {what}", fg=typer.colors.YELLOW, err=True)
+    raise typer.Exit(code)
+
+
 def main() -> None:
-    app()
+    """The console entry point: SIGTERM stops a command the way Ctrl-C does."""
+    from snnkart import faults
+
+    faults.install()
+    try:
+        app()
+    except SystemExit as exc:
+        # typer turns a KeyboardInterrupt that no command reported into exit status 130
+        if exc.code == 130 and faults.last_signal not in (None, 2):
+            raise SystemExit(128 + faults.last_signal) from None
+        raise
 
 
 if __name__ == "__main__":

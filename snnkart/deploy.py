@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import json
 import platform
+import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -26,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from snnkart import faults
 from snnkart.backends.reference import NIRReference, SpikeCounts, WindowResult
 from snnkart.evaluate import EpisodeResult, EvalSummary, run_episodes
 from snnkart.export.manifest import Manifest, ManifestError
@@ -37,6 +39,26 @@ BACKENDS = ("lava-sim", "nir-ref")
 
 class DeployError(ValueError):
     """Bad deploy input: the message names the problem and what to do."""
+
+
+class DeployWriteError(DeployError):
+    """The run finished but its record could not be written; ``record`` holds it."""
+
+    def __init__(self, message: str, record: dict[str, Any]) -> None:
+        super().__init__(message)
+        self.record = record
+
+
+def check_writable(out_dir: Path) -> None:
+    """Fail before the run, not after it, if ``out_dir`` cannot take files."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out_dir):
+            pass
+    except OSError as exc:
+        raise DeployError(
+            f"cannot write results to {out_dir}: {exc.strerror or exc}; choose another --out"
+        ) from exc
 
 
 def make_policy_env(manifest: Manifest, env: str | None, track: str | None) -> Any:
@@ -138,6 +160,7 @@ class CheckedPredictor:
         self.primary.reset()
 
     def predict(self, obs: np.ndarray) -> Any:
+        faults.fault_point("step")
         t0 = time.perf_counter()
         window, out = self.primary.step(obs)
         self.step_seconds += time.perf_counter() - t0
@@ -213,7 +236,10 @@ def run_deploy(
     on_episode: Any = None,
     on_step: Any = None,
 ) -> dict[str, Any]:
-    """Run ``episodes`` seeded episodes; return (and write to ``out_dir/deploy.json``) the record."""
+    """Run ``episodes`` seeded episodes; return (and write to ``out_dir/deploy.json``) the record.
+
+    Ctrl-C and SIGTERM (:mod:`snnkart.faults`) are taken between env steps: the backend is
+    stopped, nothing is written and :class:`~snnkart.faults.Interrupted` is raised."""
     from snnkart.backends.reference import load_chain
 
     if episodes < 1:
@@ -221,8 +247,11 @@ def run_deploy(
     nir_path = Path(nir_path)
     _, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
     gym_env = make_policy_env(manifest, env, track)
+    if out_dir is not None:
+        check_writable(out_dir)
     with contextlib.ExitStack() as stack:
         stack.callback(gym_env.close)
+        stack.enter_context(faults.caught())  # entered after gym_env.close: exits before it
         t0 = time.perf_counter()
         primary, exact, float32 = open_backend(nir_path, backend, precision, seed)
         if hasattr(primary, "close"):
@@ -285,9 +314,17 @@ def run_deploy(
         "episodes": per_episode,
     }
     if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with atomic_path(out_dir / "deploy.json") as tmp:
-            tmp.write_text(json.dumps(record, indent=2) + "\n")
+        path = out_dir / "deploy.json"
+        try:
+            faults.fault_point("deploy-write")
+            with atomic_path(path) as tmp:
+                tmp.write_text(json.dumps(record, indent=2) + "\n")
+        except OSError as exc:
+            raise DeployWriteError(
+                f"the run finished but {path} could not be written: {exc.strerror or exc}; "
+                "its summary is printed above; free space or choose another --out and run again",
+                record,
+            ) from exc
     return record
 
 
@@ -330,4 +367,11 @@ def summary_lines(record: dict[str, Any]) -> list[str]:
     return lines
 
 
-__all__ = ["BACKENDS", "DeployError", "ManifestError", "run_deploy", "summary_lines"]
+__all__ = [
+    "BACKENDS",
+    "DeployError",
+    "DeployWriteError",
+    "ManifestError",
+    "run_deploy",
+    "summary_lines",
+]

@@ -16,6 +16,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from snnkart import faults
 from snnkart.io import atomic_path
 
 EVAL_SCHEMA = "snnkart/eval/v1"
@@ -91,6 +92,7 @@ def run_episodes(
             length += 1
             if on_step is not None:
                 on_step(env)
+            faults.check()  # Ctrl-C/SIGTERM inside faults.caught() is taken here
             if terminated or truncated:
                 break
         result = EpisodeResult(

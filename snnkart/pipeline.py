@@ -22,6 +22,7 @@ from typing import Any
 from rich.console import Console
 from rich.progress import Progress
 
+from snnkart import faults
 from snnkart.io import atomic_path
 
 DEMO_ENV = "grid"
@@ -77,6 +78,11 @@ def run_pipeline(
 ) -> dict[str, Any] | None:
     """Run the four steps; None if training was interrupted (Ctrl-C saves a checkpoint, and
     running the command again resumes)."""
+    with faults.caught():  # Ctrl-C and SIGTERM are taken between env steps
+        return _run(out, steps, lava_episodes)
+
+
+def _run(out: Path, steps: int, lava_episodes: int) -> dict[str, Any] | None:
     from snnkart.backends.reference import NIRReference
     from snnkart.cli import _deploy_and_print
     from snnkart.export.nir_export import export_nir

@@ -9,6 +9,7 @@ from typing import Any
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
+from snnkart import faults
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.rl.config import TrainConfig
 
@@ -20,7 +21,8 @@ def _fmt(value: float | None, spec: str = ".2f") -> str:
 
 
 def run_training(cfg: TrainConfig, run_dir: Path, resume: bool = False) -> int:
-    """Train with a live progress bar; return the exit code (130 after Ctrl-C)."""
+    """Train with a live progress bar; return the exit code (130 after Ctrl-C, 143 after
+    SIGTERM, both with a checkpoint saved)."""
     from snnkart.rl.ppo import Trainer
 
     trainer = Trainer(cfg, run_dir, resume=resume)
@@ -70,8 +72,14 @@ def run_training(cfg: TrainConfig, run_dir: Path, resume: bool = False) -> int:
         f"TensorBoard {run_dir / 'tb'}"
     )
     if trainer.interrupted:
-        console.print(f"resume with: snnkart train --resume --out {run_dir}")
-        return 130
+        import signal
+
+        signum = trainer.interrupted_by or signal.SIGINT
+        console.print(
+            f"interrupted ({signal.Signals(signum).name}); checkpoint saved at step "
+            f"{result.global_step:,}. Resume with: snnkart train --resume --out {run_dir}"
+        )
+        return 128 + signum
     return 0
 
 
@@ -99,6 +107,7 @@ def run_eval(
     predictor = TorchPredictor(run, seed=seed)
     with contextlib.ExitStack() as stack:
         stack.callback(env.close)
+        stack.enter_context(faults.caught())  # Ctrl-C is taken between env steps
         progress = stack.enter_context(Progress(console=console, transient=True))
         task = progress.add_task("evaluating", total=episodes)
         on_step = None

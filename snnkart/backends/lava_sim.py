@@ -10,7 +10,8 @@ oracle for them.
 
 Lava never enters this process (importing it sets the multiprocessing start method). The worker
 runs in its own session, so a terminal's Ctrl-C reaches only this process, which then closes
-the worker cleanly; if this process dies, the worker sees its input end and closes itself.
+the worker cleanly (see :class:`LavaWorker` for every way out); if this process dies, the
+worker sees its input end and closes itself.
 
 Sharp edges: ``precision="fixed"`` runs the post-training quantisation of
 :mod:`snnkart.backends.quantize`; 1 to 3 spiking layers; snntorch-style neurons only.
@@ -18,6 +19,7 @@ Sharp edges: ``precision="fixed"`` runs the post-training quantisation of
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import select
@@ -25,41 +27,27 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
-from collections.abc import Iterator
+import weakref
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from snnkart import faults
 from snnkart.backends.host import HostCodec
 from snnkart.backends.lava_worker import HEADER, write_msg
 from snnkart.backends.quantize import FixedPointNetwork, quantize
 from snnkart.backends.reference import SpikeCounts, WindowResult, load_chain, split_window
+from snnkart.faults import fault_point
 
 PRECISIONS = ("float", "fixed")
 STARTUP_TIMEOUT = 120.0
 WINDOW_TIMEOUT = 90.0
-CLOSE_TIMEOUT = 15.0
-
-
-@contextlib.contextmanager
-def _sigint_deferred() -> Iterator[None]:
-    """Hold Ctrl-C until one request/reply exchange with the worker is complete, so an
-    interrupt never leaves half a message in the pipe (the close that follows would then read
-    garbage and wait); the KeyboardInterrupt is raised right after."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    hits: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: hits.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
-        if hits:
-            raise KeyboardInterrupt
+CLOSE_TIMEOUT = 4.0
+"""A normal stop takes 0.03-0.1 s (a cold one under load well under a second)."""
+INTERRUPT_GRACE = 2.0
+"""Seconds an exchange in flight may still take after Ctrl-C before the worker is killed."""
 
 
 class LavaBackendError(RuntimeError):
@@ -99,11 +87,25 @@ def lava_spec(chain: Any, num_steps: int, precision: str, fixed: FixedPointNetwo
 
 
 class LavaWorker:
-    """A running worker process: one compiled network, one Lava runtime."""
+    """A running worker process: one compiled network, one Lava runtime.
+
+    Every way out stops the whole worker session (the worker and the Lava processes it forked):
+
+    - a normal close, and a close after Ctrl-C/SIGTERM (:mod:`snnkart.faults`: the interrupt is
+      taken between exchanges, never inside one), asks the worker to stop its runtime and waits
+      at most ``CLOSE_TIMEOUT``;
+    - an interrupt during start-up, an exchange cut short (a second Ctrl-C), a worker that died
+      or failed, or a close that timed out: :meth:`kill`, which SIGTERMs the session so that
+      Python's resource tracker (it ignores SIGTERM) frees Lava's shared memory, then SIGKILLs
+      what is left;
+    - a worker still running when this process exits (an interrupt between start-up and the
+      caller's cleanup): the same, from an ``atexit`` hook.
+    """
 
     def __init__(self, spec: dict[str, Any]) -> None:
         self.stderr = tempfile.TemporaryFile()
-        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", "SNNKART_FAULT_PGID": str(os.getpgrp())}
+        self.closed = False
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "snnkart.backends.lava_worker"],
             stdin=subprocess.PIPE,
@@ -112,10 +114,11 @@ class LavaWorker:
             start_new_session=True,
             env=env,
         )
-        self.closed = False
+        _LIVE.add(self)
         try:
+            fault_point("lava-spawn")
             self._send(spec)
-            kind, info = self._recv(STARTUP_TIMEOUT)
+            kind, info = self._recv(STARTUP_TIMEOUT, interruptible=True)
             if kind != "ready":
                 raise LavaBackendError(f"Lava worker: unexpected reply {kind!r}")
             self.info = info
@@ -124,58 +127,99 @@ class LavaWorker:
             raise
 
     def _stderr_tail(self) -> str:
+        if self.stderr.closed:
+            return ""
         self.stderr.seek(0)
         text = self.stderr.read().decode(errors="replace").strip()
         return "\n".join(text.splitlines()[-15:])
+
+    def _died(self, code: int) -> LavaBackendError:
+        how = (
+            f"was killed by {signal.Signals(-code).name}"
+            if code < 0
+            else f"exited with code {code}"
+        )
+        self.kill()  # its Lava processes outlive it otherwise
+        tail = self._stderr_tail()
+        return LavaBackendError(
+            f"the Lava backend died: its worker process {how}"
+            + (f". Its output:\n{tail}" if tail else "")
+        )
 
     def _send(self, obj: Any) -> None:
         assert self.proc.stdin is not None
         try:
             write_msg(self.proc.stdin, obj)
         except (BrokenPipeError, OSError) as exc:
-            raise LavaBackendError(
-                f"the Lava worker exited ({self.proc.poll()}): {self._stderr_tail()}"
-            ) from exc
+            code = self.proc.poll()
+            raise self._died(code if code is not None else 1) from exc
 
-    def _read_exact(self, n: int, deadline: float) -> bytes:
+    def _read_exact(self, n: int, deadline: float, interruptible: bool) -> bytes:
+        """Read ``n`` bytes of a reply. Checks ten times a second that the worker is alive (its
+        forked Lava processes hold the pipe open, so its death is not an end of file), and
+        gives up ``INTERRUPT_GRACE`` seconds after an interrupt (at once if ``interruptible``)."""
         assert self.proc.stdout is not None
         fd = self.proc.stdout.fileno()
         chunks, got = [], 0
         while got < n:
-            left = deadline - time.monotonic()
-            if left <= 0:
+            if faults.pending() is not None and (
+                interruptible or faults.pending_for() > INTERRUPT_GRACE
+            ):
+                self.kill()
+                faults.check()
+            if time.monotonic() > deadline:
+                self.kill()
                 raise LavaBackendError(
                     "the Lava worker did not answer in time (hung?); it was stopped. "
                     f"Its output:\n{self._stderr_tail()}"
                 )
-            ready, _, _ = select.select([fd], [], [], min(left, 1.0))
+            ready, _, _ = select.select([fd], [], [], 0.1)
             if not ready:
+                code = self.proc.poll()
+                if code is not None:
+                    raise self._died(code)
                 continue
             chunk = os.read(fd, n - got)
             if not chunk:
-                code = self.proc.wait(timeout=5)
-                raise LavaBackendError(
-                    f"the Lava worker exited with code {code}. Its output:\n{self._stderr_tail()}"
-                )
+                try:
+                    code = self.proc.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    code = 1
+                raise self._died(code)
             chunks.append(chunk)
             got += len(chunk)
         return b"".join(chunks)
 
-    def _recv(self, timeout: float) -> tuple[str, Any]:
+    def _recv(self, timeout: float, interruptible: bool = False) -> tuple[str, Any]:
         import pickle
 
         deadline = time.monotonic() + timeout
-        (n,) = HEADER.unpack(self._read_exact(HEADER.size, deadline))
-        kind, payload = pickle.loads(self._read_exact(n, deadline))
+        (n,) = HEADER.unpack(self._read_exact(HEADER.size, deadline, interruptible))
+        kind, payload = pickle.loads(self._read_exact(n, deadline, interruptible))
         if kind == "error":
+            self.kill()
             raise LavaBackendError(f"Lava failed: {payload}")
         return kind, payload
 
+    def _exchange(self, request: tuple, phase: str, timeout: float) -> tuple[str, Any]:
+        """One request and its reply; anything escaping half-way (a second Ctrl-C) kills the
+        worker, since the pipe then holds half a message."""
+        if self.closed:
+            raise LavaBackendError("the Lava worker was stopped")
+        try:
+            with faults.caught():
+                self._send(request)
+                fault_point(phase)
+                return self._recv(timeout)
+        except BaseException:
+            if not self.closed:
+                self.kill()
+            raise
+
     def window(self, current: np.ndarray) -> np.ndarray:
-        with _sigint_deferred():
-            self._send(("window", current))
-            kind, raster = self._recv(WINDOW_TIMEOUT)
+        kind, raster = self._exchange(("window", current), "window", WINDOW_TIMEOUT)
         if kind != "raster":
+            self.kill()
             raise LavaBackendError(f"Lava worker: unexpected reply {kind!r}")
         return np.asarray(raster, dtype=bool)
 
@@ -183,27 +227,69 @@ class LavaWorker:
         """Ask the worker to stop its Lava runtime; kill its session if it does not."""
         if self.closed:
             return
-        self.closed = True
         try:
             if self.proc.poll() is None:
-                with _sigint_deferred():
-                    self._send(("close",))
-                    self._recv(CLOSE_TIMEOUT)
-                    self.proc.wait(timeout=CLOSE_TIMEOUT)
-        except (LavaBackendError, subprocess.TimeoutExpired):
+                self._exchange(("close",), "close", CLOSE_TIMEOUT)
+                self.proc.wait(timeout=CLOSE_TIMEOUT)
+            self.closed = True
+        except subprocess.TimeoutExpired as exc:
             self.kill()
-            raise
+            raise LavaBackendError("the Lava worker did not stop in time; it was killed") from exc
         finally:
-            self.stderr.close()
+            if not self.closed:
+                self.kill()
+            self._finish()
 
     def kill(self) -> None:
-        """Kill the worker and every Lava process it forked (they share its session)."""
+        """Stop the worker and every Lava process it forked (they share its session)."""
         self.closed = True
+        stop_session(self.proc.pid)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.proc.wait(timeout=1)
+        self._finish()
+
+    def _finish(self) -> None:
+        _LIVE.discard(self)
+
+
+def _session_members(sid: int) -> list[int]:
+    """Live (not zombie) processes of session ``sid``, from /proc."""
+    members = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
         try:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        self.proc.wait()
+            stat = Path(f"/proc/{entry}/stat").read_text()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(")") + 2 :].split()
+        if fields[0] != "Z" and int(fields[3]) == sid:  # state, ppid, pgrp, session
+            members.append(int(entry))
+    return members
+
+
+def stop_session(sid: int, grace: float = 3.0) -> None:
+    """SIGTERM every process of the worker's session, wait up to ``grace`` seconds, SIGKILL.
+
+    SIGTERM first: Lava's processes die at once, while Python's resource tracker, which ignores
+    SIGTERM, outlives them and unlinks the shared memory they registered (SIGKILL would leave
+    it in /dev/shm); it exits by itself once the last of them is gone."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(sid, signal.SIGTERM)
+    deadline = time.monotonic() + grace
+    while _session_members(sid) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(sid, signal.SIGKILL)
+
+
+_LIVE: weakref.WeakSet[LavaWorker] = weakref.WeakSet()
+
+
+@atexit.register
+def _stop_live_workers() -> None:
+    for worker in list(_LIVE):
+        worker.kill()
 
 
 class LavaSimPredictor:

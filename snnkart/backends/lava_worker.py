@@ -39,9 +39,19 @@ RECV_TIMEOUT = 60.0
 HEADER = struct.Struct("<Q")
 
 
-def write_msg(stream: IO[bytes], obj: Any) -> None:
+def write_msg(stream: IO[bytes], obj: Any, phase: str | None = None) -> None:
+    """Write one length-prefixed message; ``phase`` names a fault point between the header and
+    the payload (tests interrupt there: "while the worker writes its reply")."""
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    stream.write(HEADER.pack(len(data)) + data)
+    if phase is None:
+        stream.write(HEADER.pack(len(data)) + data)
+    else:
+        from snnkart.faults import fault_point
+
+        stream.write(HEADER.pack(len(data)))
+        stream.flush()
+        fault_point(phase)
+        stream.write(data)
     stream.flush()
 
 
@@ -66,6 +76,7 @@ class LavaNetwork:
         from lava.proc.lif.process import LIFReset
 
         from snnkart.backends.lava_procs.bridge import HostBridge
+        from snnkart.faults import fault_point
 
         self.precision = spec["precision"]
         self.T = int(spec["num_steps"])
@@ -107,6 +118,7 @@ class LavaNetwork:
         # the parent owns Ctrl-C and ends the run through the close request.
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
+            fault_point("lava-startup")  # (a delay lands the signal while the runtime forks)
             self.bridge.create_runtime(run_cfg=self.run_cfg)
         finally:
             signal.signal(signal.SIGINT, previous)
@@ -180,7 +192,9 @@ def abort(net: LavaNetwork | None) -> None:
 
 
 def main() -> int:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent ends us with a close request
+    # The parent ends us with a close request, or with SIGTERM to this session (default action:
+    # Lava's processes die, and Python's resource tracker frees their shared memory).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     proto_out = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # Lava's prints go to stderr
     proto_in = sys.stdin.buffer
@@ -206,7 +220,7 @@ def main() -> int:
             except EOFError:
                 msg = ("close",)
             if msg[0] == "window":
-                write_msg(proto_out, ("raster", net.window(msg[1])))
+                write_msg(proto_out, ("raster", net.window(msg[1])), phase="reply")
             elif msg[0] == "close":
                 net.close()
                 try:
@@ -224,7 +238,10 @@ def main() -> int:
             pass
         traceback.print_exc(file=sys.stderr)
         abort(net)
-        return 1
+        sys.stderr.flush()
+        # Not a normal exit: the runtime's __del__ would call stop(), which waits forever for
+        # processes that abort() has just terminated.
+        os._exit(1)
 
 
 if __name__ == "__main__":

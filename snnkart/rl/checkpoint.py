@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from snnkart.envs.base import ENV_REVISION, KartEnv, revision_mismatch
+from snnkart.faults import fault_point
 from snnkart.io import atomic_path
 
 CHECKPOINT_SCHEMA = "snnkart/checkpoint/v1"
@@ -108,35 +109,63 @@ class RunningMeanStd:
         return cls(state["mean"].numpy().copy(), state["var"].numpy().copy(), float(state["count"]))
 
 
+class CheckpointWriteError(CheckpointError):
+    """A checkpoint could not be written (disk full, read-only, ...); the previous one is
+    intact (files are replaced atomically)."""
+
+
 def save_checkpoint(path: Path, state: dict[str, Any], meta: dict[str, Any]) -> None:
-    """Write ``path`` (.pt, tensors and plain values) and ``path.with_suffix('.json')``."""
+    """Write ``path`` (.pt, tensors and plain values) and ``path.with_suffix('.json')``.
+
+    The metadata is also stored inside the .pt file, which is replaced atomically, so the pair
+    can never disagree: a process killed between the two renames leaves a .json that
+    :func:`load_checkpoint` ignores in favour of the copy inside the .pt."""
     meta = {"schema": CHECKPOINT_SCHEMA, "versions": versions(), **meta}
-    with atomic_path(path) as tmp:
-        torch.save(state, tmp)
-    with atomic_path(path.with_suffix(".json")) as tmp:
-        tmp.write_text(json.dumps(meta, indent=2) + "\n")
+    text = json.dumps(meta, indent=2) + "\n"
+    try:
+        with atomic_path(path) as tmp:
+            torch.save({**state, "meta_json": text}, tmp)
+            fault_point("checkpoint")  # tests: interrupted while a checkpoint is written
+        with atomic_path(path.with_suffix(".json")) as tmp:
+            tmp.write_text(text)
+    except OSError as exc:
+        raise CheckpointWriteError(
+            f"cannot write the checkpoint {exc.filename or path}: {exc.strerror or exc}"
+        ) from exc
 
 
 def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The state dict and metadata of ``path``; the metadata comes from inside the .pt file
+    (checkpoints written before it was stored there: from the .json beside it)."""
     path = Path(path)
     meta_path = path.with_suffix(".json")
-    if not path.is_file() or not meta_path.is_file():
+    if not path.is_file():
         raise CheckpointError(
-            f"no checkpoint at {path} (needs {path.name} and {meta_path.name}); "
+            f"no checkpoint at {path} (needs {path.name}); "
             "train first or pass the right run directory"
-        )
-    try:
-        meta = json.loads(meta_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise CheckpointError(f"{meta_path}: corrupt checkpoint metadata ({exc})") from exc
-    if meta.get("schema") != CHECKPOINT_SCHEMA:
-        raise CheckpointError(
-            f"{meta_path}: schema {meta.get('schema')!r} is not {CHECKPOINT_SCHEMA!r}"
         )
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for corrupt files
         raise CheckpointError(f"{path}: cannot read the checkpoint ({exc})") from exc
+    inner = state.pop("meta_json", None)
+    source = path
+    try:
+        if isinstance(inner, str):
+            meta = json.loads(inner)
+        elif meta_path.is_file():
+            meta, source = json.loads(meta_path.read_text()), meta_path
+        else:
+            raise CheckpointError(
+                f"no checkpoint metadata for {path} (an older checkpoint needs {meta_path.name} "
+                "beside it); train first or pass the right run directory"
+            )
+    except json.JSONDecodeError as exc:
+        raise CheckpointError(f"{source}: corrupt checkpoint metadata ({exc})") from exc
+    if meta.get("schema") != CHECKPOINT_SCHEMA:
+        raise CheckpointError(
+            f"{source}: schema {meta.get('schema')!r} is not {CHECKPOINT_SCHEMA!r}"
+        )
     return state, meta
 
 

@@ -18,9 +18,10 @@ Details that matter:
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import json
 import math
-import signal
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -32,6 +33,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from snnkart import faults
 from snnkart.envs import ENV_IDS
 from snnkart.envs.base import KartEnv
 from snnkart.io import atomic_path
@@ -245,7 +247,10 @@ class Trainer:
     # -- the loop ------------------------------------------------------------------------------
 
     def train(self, on_iteration: Callable[[dict[str, Any]], None] | None = None) -> Progress:
-        """Run until ``total_steps``; Ctrl-C (SIGINT) saves a checkpoint before returning."""
+        """Run until ``total_steps``; Ctrl-C or SIGTERM saves a checkpoint before returning
+        (``self.interrupted_by`` is then the signal). The interrupt is taken between env
+        steps; a rollout cut short is dropped, so the checkpoint holds the last whole
+        iteration."""
         cfg, p = self.cfg, self.cfg.ppo
         S, E = p.num_steps, p.num_envs
         obs_dim = self.spec["obs_dim"]
@@ -271,17 +276,17 @@ class Trainer:
         next_raw, _ = self.envs.reset(seed=cfg.seed + 7919 * self.progress.iteration)
         ep_return = np.zeros(E)
         ep_length = np.zeros(E, dtype=np.int64)
-        interrupted = False
 
-        def _on_sigint(signum: int, frame: Any) -> None:
-            nonlocal interrupted
-            interrupted = True
+        def interrupted() -> bool:
+            return faults.pending() is not None
 
-        previous = signal.signal(signal.SIGINT, _on_sigint)
         self.policy.train()
+        stack = contextlib.ExitStack()
+        stack.enter_context(faults.caught())  # Ctrl-C/SIGTERM set a flag checked below
         try:
-            while self.progress.iteration < self.num_iterations and not interrupted:
+            while self.progress.iteration < self.num_iterations and not interrupted():
                 it_start = time.perf_counter()
+                before = copy.deepcopy((self.progress, self.obs_rms))  # restored if cut short
                 self.progress.iteration += 1
                 frac = 1.0 - (self.progress.iteration - 1) / self.num_iterations
                 if p.anneal_lr:
@@ -331,11 +336,10 @@ class Trainer:
                     for i in np.flatnonzero(done):
                         self._episode_end(info, i, ep_return[i], ep_length[i], stats)
                         ep_return[i], ep_length[i] = 0.0, 0
-                    if interrupted:
+                    if interrupted():
                         break
-                if interrupted:
-                    self.progress.iteration -= 1
-                    self.progress.global_step -= (step + 1) * E
+                if interrupted():
+                    self.progress, self.obs_rms = before
                     break
                 rollout_time = time.perf_counter() - it_start
 
@@ -371,13 +375,14 @@ class Trainer:
                     self.save()
                 if on_iteration is not None:
                     on_iteration(record)
-        finally:
-            signal.signal(signal.SIGINT, previous)
-            if interrupted:
+            if interrupted():
                 self.save()
+        finally:
             if self.writer is not None:
                 self.writer.flush()
-        self.interrupted = interrupted
+            self.interrupted_by = faults.consume()
+            stack.close()
+        self.interrupted = self.interrupted_by is not None
         return self.progress
 
     def update(
