@@ -189,12 +189,12 @@ def fault_point(phase: str) -> None:
         return
     target = int(os.environ.get("SNNKART_FAULT_PGID") or os.getpgrp())
     log = os.environ.get("SNNKART_FAULT_LOG")
-    if log:
-        with open(log, "a") as f:
-            f.write(f"{phase}@{n}+{spec.delay_s}:{signal.Signals(spec.signum).name} "
-                    f"pid {os.getpid()}\n")  # fmt: skip
 
     def fire() -> None:
+        if log:  # before the signal: SIGSTOP would hold the line back
+            with open(log, "a") as f:
+                f.write(f"{phase}@{n}+{spec.delay_s}:{signal.Signals(spec.signum).name} "
+                        f"pid {os.getpid()} t={time.monotonic()}\n")  # fmt: skip
         with contextlib.suppress(ProcessLookupError):
             os.killpg(target, spec.signum)
 

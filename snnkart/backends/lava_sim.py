@@ -232,6 +232,7 @@ class LavaWorker:
                 self._exchange(("close",), "close", CLOSE_TIMEOUT)
                 self.proc.wait(timeout=CLOSE_TIMEOUT)
             self.closed = True
+            stop_session(self.proc.pid, grace=CLOSE_TIMEOUT, first=None)  # the tracker's exit
         except subprocess.TimeoutExpired as exc:
             self.kill()
             raise LavaBackendError("the Lava worker did not stop in time; it was killed") from exc
@@ -268,14 +269,17 @@ def _session_members(sid: int) -> list[int]:
     return members
 
 
-def stop_session(sid: int, grace: float = 3.0) -> None:
-    """SIGTERM every process of the worker's session, wait up to ``grace`` seconds, SIGKILL.
+def stop_session(sid: int, grace: float = 3.0, first: int | None = signal.SIGTERM) -> None:
+    """Send ``first`` to every process of the worker's session, wait up to ``grace`` seconds
+    for them to end, SIGKILL what is left.
 
     SIGTERM first: Lava's processes die at once, while Python's resource tracker, which ignores
     SIGTERM, outlives them and unlinks the shared memory they registered (SIGKILL would leave
-    it in /dev/shm); it exits by itself once the last of them is gone."""
-    with contextlib.suppress(ProcessLookupError, PermissionError):
-        os.killpg(sid, signal.SIGTERM)
+    it in /dev/shm); it exits by itself once the last of them is gone. After a normal close
+    (``first=None``) only the tracker is left, for a moment."""
+    if first is not None:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(sid, first)
     deadline = time.monotonic() + grace
     while _session_members(sid) and time.monotonic() < deadline:
         time.sleep(0.02)

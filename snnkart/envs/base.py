@@ -28,6 +28,7 @@ from snnkart.envs.constants import (
 from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.tracks import Track, load_track
+from snnkart.faults import fault_point
 
 _KART, _WALL, _CHECKPOINT = 1, 2, 3
 ACTION_MODES = ("discrete", "continuous")
@@ -363,6 +364,9 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._body = body
 
     def _on_wall(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+        # pymunk runs this from C through cffi, which drops any exception raised here: an
+        # interrupt is only safe as a flag (snnkart.faults.caught). Tests signal from here.
+        fault_point("physics-callback")
         self._touched_wall = True
 
     def _on_checkpoint(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:

@@ -8,6 +8,7 @@ silently with another env. Files are written atomically.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import platform
 from dataclasses import dataclass
@@ -122,9 +123,11 @@ def save_checkpoint(path: Path, state: dict[str, Any], meta: dict[str, Any]) -> 
     :func:`load_checkpoint` ignores in favour of the copy inside the .pt."""
     meta = {"schema": CHECKPOINT_SCHEMA, "versions": versions(), **meta}
     text = json.dumps(meta, indent=2) + "\n"
+    buffer = io.BytesIO()  # serialised first: torch's own file writer hides why a write failed
+    torch.save({**state, "meta_json": text}, buffer)
     try:
         with atomic_path(path) as tmp:
-            torch.save({**state, "meta_json": text}, tmp)
+            tmp.write_bytes(buffer.getvalue())
             fault_point("checkpoint")  # tests: interrupted while a checkpoint is written
         with atomic_path(path.with_suffix(".json")) as tmp:
             tmp.write_text(text)

@@ -1,0 +1,36 @@
+"""Suite-wide rules.
+
+``SNNKART_REQUIRE_OPTIONAL=1`` (set by CI): a test that skips because an optional part is
+missing (its skip reason starts with "optional:", e.g. a read-only mount needs root) fails
+instead, so CI never passes with part of the suite silently not run.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import pytest
+
+REQUIRE_OPTIONAL = os.environ.get("SNNKART_REQUIRE_OPTIONAL") == "1"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> object:
+    outcome = yield
+    report = outcome.get_result()
+    if REQUIRE_OPTIONAL and report.skipped and isinstance(report.longrepr, tuple):
+        reason = str(report.longrepr[2])
+        if reason.startswith("Skipped: optional:") or reason.startswith("optional:"):
+            report.outcome = "failed"
+            report.longrepr = f"SNNKART_REQUIRE_OPTIONAL=1 and a missing optional part: {reason}"
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    faults = sys.modules.get("test_faults")
+    counts = getattr(faults, "PHASE_COUNTS", None)
+    if counts:
+        terminalreporter.write_sep("-", f"faults injected per phase (seed {faults.SEED})")
+        for phase, n in sorted(counts.items()):
+            terminalreporter.write_line(f"{n:4d}  {phase}")
+        terminalreporter.write_line(f"{sum(counts.values()):4d}  in all")
