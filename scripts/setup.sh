@@ -51,8 +51,9 @@ MSG
 fi
 
 VENV=.venv
+extras="${SNNKART_EXTRAS:-dev}"   # CI: dev,bench (every optional part)
 stamp="$VENV/.snnkart-installed"
-want="$(sha256sum pyproject.toml | cut -d' ' -f1) $PY"
+want="$(sha256sum pyproject.toml | cut -d' ' -f1) $PY [$extras]"
 if ! is_py310 "$VENV/bin/python"; then
   echo "creating $VENV with $PY"
   rm -rf "$VENV"
@@ -61,7 +62,7 @@ fi
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "installing snnkart and its dependencies into $VENV (torch is large: a few minutes on a fresh machine)"
   "$VENV/bin/python" -m pip install --quiet --upgrade pip
-  "$VENV/bin/python" -m pip install --quiet -e '.[dev]'
+  "$VENV/bin/python" -m pip install --quiet -e ".[$extras]"
   echo "$want" > "$stamp"
 fi
 
