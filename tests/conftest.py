@@ -31,6 +31,12 @@ def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
     counts = getattr(faults, "PHASE_COUNTS", None)
     if counts:
         terminalreporter.write_sep("-", f"faults injected per phase (seed {faults.SEED})")
+        slowest = getattr(faults, "SLOWEST", {})
         for phase, n in sorted(counts.items()):
-            terminalreporter.write_line(f"{n:4d}  {phase}")
+            took = (
+                f"  (slowest end {slowest[phase]:.2f} s after the fault)"
+                if phase in slowest
+                else ""
+            )
+            terminalreporter.write_line(f"{n:4d}  {phase}{took}")
         terminalreporter.write_line(f"{sum(counts.values()):4d}  in all")

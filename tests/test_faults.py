@@ -48,6 +48,8 @@ SEED = int(os.environ.get("SNNKART_FAULT_SEED") or random.SystemRandom().randran
 RANDOM_DRAWS = 20
 PHASE_COUNTS: Counter[str] = Counter()
 """Faults injected per phase in this run (printed in the terminal summary by conftest)."""
+SLOWEST: dict[str, float] = {}
+"""The longest time from a fault to the command's end, per phase."""
 
 TRAIN_ARGS = [
     "train", "--env", "grid", "--policy", "ann", "--track", "small_S",
@@ -229,7 +231,13 @@ def assert_interrupted(o: Outcome, signum: int, phase: str) -> None:
     assert o.returncode == 128 + signum, o.context()
     assert f"interrupted ({name})" in o.stderr, o.context()
     assert o.took_s <= FAULT_BOUND_S, o.context()
-    PHASE_COUNTS[f"{phase} {name}"] += 1
+    count(f"{phase} {name}", o)
+
+
+def count(phase: str, o: Outcome) -> None:
+    PHASE_COUNTS[phase] += 1
+    if o.took_s == o.took_s:  # not NaN
+        SLOWEST[phase] = max(SLOWEST.get(phase, 0.0), o.took_s)
 
 
 # -- deploy on lava-sim ----------------------------------------------------------------------
@@ -334,7 +342,6 @@ def _kill_worker(proc: subprocess.Popen, mark: str, log: Path) -> float:
     _wait_for_steps(log, proc)
     (worker,) = _children(proc.pid)
     os.kill(worker, signal.SIGKILL)
-    PHASE_COUNTS["SIGKILL worker"] += 1
     return time.monotonic()
 
 
@@ -343,7 +350,6 @@ def _kill_lava_process(proc: subprocess.Popen, mark: str, log: Path) -> float:
     (worker,) = _children(proc.pid)
     newest = max(_children(worker))  # a process model: forked after the runtime's services
     os.kill(newest, signal.SIGKILL)
-    PHASE_COUNTS["SIGKILL Lava process"] += 1
     return time.monotonic()
 
 
@@ -363,6 +369,7 @@ def test_a_killed_backend_is_reported_not_waited_for(
     assert "error:" in o.stderr and expected in o.stderr, o.context()
     assert o.took_s <= FAULT_BOUND_S, o.context()
     assert not (tmp_path / "out" / "deploy.json").exists()
+    count(f"SIGKILL {'worker' if victim is _kill_worker else 'Lava process'}", o)
 
 
 # -- train -----------------------------------------------------------------------------------
@@ -473,7 +480,7 @@ def test_full_disk_while_writing_a_checkpoint(trained: Path, tmp_path: Path) -> 
     o = run_faulted(resume, tmp_path, fsize=limit)
     _assert_clean_write_failure(o, run_dir, step, "File too large")
     _no_temp_files(run_dir)
-    PHASE_COUNTS["full disk: checkpoint"] += 1
+    count("full disk: checkpoint", o)
 
 
 @contextlib.contextmanager
@@ -519,7 +526,7 @@ def test_read_only_run_directory_while_writing_a_checkpoint(trained: Path, tmp_p
         # stop while iteration 3's checkpoint is written (its .pt is in a temporary file)
         o = run_faulted(resume, tmp_path, "checkpoint:SIGSTOP", act=_freeze_then(make_read_only))
         _assert_clean_write_failure(o, run_dir, step, "Read-only file system")
-        PHASE_COUNTS["read-only: checkpoint"] += 1
+        count("read-only: checkpoint", o)
 
 
 @pytest.mark.lava
@@ -539,7 +546,7 @@ def test_read_only_deploy_directory_while_writing_the_record(policy: Path, tmp_p
         o = run_faulted(deploy_args(policy, out, episodes=2), tmp_path)
         assert o.returncode == 2 and "cannot write results to" in o.stderr, o.context()
         assert "lava-sim (fixed)" not in o.stdout, o.context()
-        PHASE_COUNTS["read-only: deploy.json"] += 1
+        count("read-only: deploy.json", o)
 
 
 @pytest.mark.timeout(200)
@@ -558,6 +565,6 @@ def test_full_disk_while_writing_the_deploy_record(policy: Path, tmp_path: Path)
         assert "deploy.json could not be written: No space left on device" in o.stderr, o.context()
         assert "nir-ref (fixed) on steer/small_S, 30 episodes" in o.stdout, o.context()
         assert list((mnt / "out").iterdir()) == [], "a partial file was left"
-        PHASE_COUNTS["full disk: deploy.json"] += 1
+        count("full disk: deploy.json", o)
     finally:
         subprocess.run(["umount", "-l", str(mnt)], check=False)
