@@ -733,6 +733,8 @@ def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: 
         stderr=subprocess.PIPE,
         env={**SUBPROCESS_ENV, "SNNKART_TEST_MARK": mark},
         start_new_session=True,
+        # Ctrl-C as in a terminal's foreground job, even if the suite runs with SIGINT ignored
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         deadline = time.monotonic() + 60

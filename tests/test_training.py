@@ -278,6 +278,12 @@ def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
     assert (run_dir / "trajectories" / "iter_000004.npz").is_file()
 
 
+def _foreground_sigint() -> None:
+    """In the child: Ctrl-C as in a terminal's foreground job, even when the suite itself runs
+    with SIGINT ignored (started in the background by a non-interactive shell)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_resume_without_a_run_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(RunError, match="nothing to resume"):
         Trainer(tiny_config(), tmp_path / "empty", resume=True)
@@ -291,7 +297,10 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_130(tmp_path: Path) -> None:
         *[arg for s in TINY for arg in ("--set", s)],
     ]  # fmt: skip
     env = {**os.environ, "SDL_VIDEODRIVER": "dummy", "COLUMNS": "200"}
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        preexec_fn=_foreground_sigint,
+    )  # fmt: skip
     try:
         deadline = time.monotonic() + 90
         metrics_path = run_dir / "metrics.jsonl"
