@@ -200,7 +200,7 @@ def run_faulted(
     stderr = err_file.read_bytes()
     ended = time.monotonic()
     fired = log.read_text().splitlines() if log.exists() else []
-    if fired_at is None and fired:
+    if fired_at is None:
         fired_at = _fired_at(log)
     outcome = Outcome(
         args, fault, proc.returncode, stdout.decode(), stderr.decode(), fired,
@@ -220,9 +220,13 @@ def run_faulted(
     return outcome
 
 
-def _fired_at(log: Path) -> float:
-    """When the fault point fired (CLOCK_MONOTONIC is the same in every process)."""
-    return float(log.read_text().splitlines()[0].rsplit("t=", 1)[1])
+def _fired_at(log: Path) -> float | None:
+    """When the fault point fired (CLOCK_MONOTONIC is the same in every process); None while
+    its line is not completely written yet."""
+    text = log.read_text() if log.exists() else ""
+    if "\n" not in text:
+        return None
+    return float(text.split("\n", 1)[0].rsplit("t=", 1)[1])
 
 
 def assert_interrupted(o: Outcome, signum: int, phase: str) -> None:
