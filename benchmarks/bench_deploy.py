@@ -36,7 +36,7 @@ from snnkart.rl.run import TorchPredictor, load_run
 
 def record_observations(run: Any, steps: int, seed: int = 0) -> list[np.ndarray]:
     """Observations of a closed-loop run of the torch policy (episodes back to back)."""
-    env = make_env(run.config)
+    env = make_env(run.config, track=run.track)
     predictor = TorchPredictor(run, seed=seed)
     obs_list: list[np.ndarray] = []
     try:

@@ -190,11 +190,21 @@ def eval_(
     precision: Annotated[
         str, typer.Option(help="nir-ref/lava-sim arithmetic (see `snnkart deploy`)")
     ] = "fixed",
+    env: Annotated[
+        str | None,
+        typer.Option("--env", "-e", help="a NIR file's env (default: the manifest's)"),
+    ] = None,
+    track: Annotated[
+        str | None,
+        typer.Option("--track", "-t", help="another track (default: the one trained on)"),
+    ] = None,
 ) -> None:
     """Evaluate the deterministic policy with frozen normalisation; print and write JSON.
 
     With ``--backend nir-ref|lava-sim`` RUN_DIR may also be an exported ``policy.nir``; a run
-    directory is exported to NIR first."""
+    directory is exported to NIR first. The policy runs on the track it was trained on
+    (carried in its checkpoint and manifest), or on ``--track``."""
+    from snnkart.envs.tracks import TrackError
     from snnkart.rl.checkpoint import CheckpointError
     from snnkart.rl.config import ConfigError
     from snnkart.train_cli import run_eval
@@ -202,15 +212,17 @@ def eval_(
     if episodes < 1:
         _fail(f"--episodes must be >= 1, got {episodes}")
     if backend != "torch":
-        _eval_exported(run_dir, backend, precision, episodes, seed, checkpoint, out)
+        _eval_exported(run_dir, backend, precision, episodes, seed, checkpoint, out, env, track)
         return
     if run_dir.suffix == ".nir":
         _fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
+    if env is not None:
+        _fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
     try:
-        run_eval(run_dir, episodes, seed, checkpoint, render, video, out)
+        run_eval(run_dir, episodes, seed, checkpoint, render, video, out, track)
     except KeyboardInterrupt as exc:
         _interrupted(exc, "no results were written")
-    except (ConfigError, CheckpointError, ValueError) as exc:
+    except (ConfigError, CheckpointError, TrackError, ValueError) as exc:
         _fail(str(exc))
 
 
@@ -222,6 +234,8 @@ def _eval_exported(
     seed: int,
     checkpoint: Path | None,
     out: Path | None,
+    env: str | None = None,
+    track: str | None = None,
 ) -> None:
     import tempfile
 
@@ -243,7 +257,7 @@ def _eval_exported(
             nir_file = target
             default_out = target.parent / f"eval-{backend}-{precision}"
         _deploy_and_print(
-            nir_file, backend, precision, episodes, seed, None, None, out or default_out
+            nir_file, backend, precision, episodes, seed, env, track, out or default_out
         )
 
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from snnkart import faults
 from snnkart.backends.reference import NIRReference, SpikeCounts, WindowResult
+from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.evaluate import EpisodeResult, EvalSummary, run_episodes
 from snnkart.export.manifest import Manifest, ManifestError
 from snnkart.io import atomic_path
@@ -61,8 +62,70 @@ def check_writable(out_dir: Path) -> None:
         ) from exc
 
 
-def make_policy_env(manifest: Manifest, env: str | None, track: str | None) -> Any:
-    """The env the manifest describes (optionally another track or env), checked to fit."""
+@dataclass(frozen=True)
+class TrackChoice:
+    """The track a policy runs on, and whether it is the one it was trained on."""
+
+    track: Track
+    given: str  # how the user named it, or how the training run named it if embedded
+    source: str  # "--track", "embedded" (in the manifest) or "name" (a v1 manifest's)
+    trained: dict[str, str]  # name, given and sha256 of the trained track
+
+    @property
+    def override(self) -> bool:
+        return track_sha256(self.track) != self.trained.get("sha256")
+
+    @property
+    def label(self) -> str:
+        label = track_label(self.track.name, self.given)
+        return label[:-1] + ", embedded)" if self.source == "embedded" and "(" in label else label
+
+    def record(self) -> dict[str, Any]:
+        return {
+            "track": self.track.name,
+            "track_given": self.given,
+            "track_source": self.source,
+            "track_sha256": track_sha256(self.track),
+            "trained_track": self.trained,
+            "track_override": self.override,
+        }
+
+
+def resolve_track(manifest: Manifest, track: str | None) -> TrackChoice:
+    """``--track`` if given (any track: evaluating elsewhere is a real use), else the track
+    embedded in the manifest, else (v1 manifests) the track the manifest names."""
+    from snnkart.envs.tracks import TrackError, embedded_track, load_track
+
+    spec = manifest.env
+    if manifest.track:
+        trained = {k: manifest.track[k] for k in ("name", "given", "sha256")}
+    else:
+        trained = {"name": spec.get("track", "small_S"), "sha256": spec.get("track_sha256", "")}
+    if track is not None:
+        try:
+            return TrackChoice(load_track(track), str(track), "--track", trained)
+        except TrackError as exc:
+            raise DeployError(f"--track: {exc}") from exc
+    if manifest.track:
+        try:
+            chosen = embedded_track(manifest.track, "the manifest")
+        except TrackError as exc:
+            raise DeployError(str(exc)) from exc
+        return TrackChoice(chosen, manifest.track["given"], "embedded", trained)
+    name = trained["name"]
+    try:
+        return TrackChoice(load_track(name), name, "name", trained)
+    except TrackError as exc:
+        raise DeployError(
+            f"the manifest ({manifest.schema}, written before tracks were embedded) names track "
+            f"{name!r}, which is neither built in nor a file here; pass --track with its file, "
+            "or export the run again"
+        ) from exc
+
+
+def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | None) -> Any:
+    """The env the manifest describes (optionally another track or env), checked to fit;
+    ``track`` None: the manifest's own (see :func:`resolve_track`)."""
     from snnkart.envs import ENV_IDS, make, resolve_env_name
     from snnkart.envs.base import revision_mismatch
     from snnkart.envs.tracks import TrackError
@@ -83,8 +146,10 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | None) -> A
         raise DeployError(f"{where}: {exc}") from exc
     if resolved not in ENV_IDS:
         raise DeployError(f"unknown env {name!r}")
+    if track is None or isinstance(track, str):
+        track = resolve_track(manifest, track).track
     kwargs: dict[str, Any] = {
-        "track": track or spec.get("track", "small_S"),
+        "track": track,
         "action_mode": spec.get("action_mode", manifest.action_mode),
     }
     if spec.get("env_config") and resolved == spec.get("env"):
@@ -246,7 +311,8 @@ def run_deploy(
         raise DeployError(f"--episodes must be >= 1, got {episodes}")
     nir_path = Path(nir_path)
     _, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
-    gym_env = make_policy_env(manifest, env, track)
+    choice = resolve_track(manifest, track)
+    gym_env = make_policy_env(manifest, env, choice.track)
     if out_dir is not None:
         check_writable(out_dir)
     with contextlib.ExitStack() as stack:
@@ -289,7 +355,8 @@ def run_deploy(
         },
         "env": {
             "env": gym_env.unwrapped.env_name,
-            "track": gym_env.unwrapped.track.name,
+            **choice.record(),
+            "track_label": choice.label,
             "action_mode": gym_env.unwrapped.action_mode,
         },
         "first_seed": seed,
@@ -332,11 +399,19 @@ def summary_lines(record: dict[str, Any]) -> list[str]:
     """What ``snnkart deploy`` prints."""
     s, p, c, t = record["summary"], record["parity"], record["counts"], record["timing"]
     n = max(c["env_steps"], 1)
+    e = record["env"]
     lines = [
-        f"{record['backend']} ({record['precision']}) on {record['env']['env']}/"
-        f"{record['env']['track']}, {s['episodes']} episodes: success {s['success_rate']:.0%}, "
-        f"return {s['mean_return']:.2f}, crashes {s['crashes']}, time-outs {s['timeouts']}",
+        f"{record['backend']} ({record['precision']}) on {e['env']}/"
+        f"{e.get('track_label', e['track'])}, {s['episodes']} episodes: success "
+        f"{s['success_rate']:.0%}, return {s['mean_return']:.2f}, crashes {s['crashes']}, "
+        f"time-outs {s['timeouts']}",
     ]
+    if e.get("track_override"):
+        trained = e["trained_track"]
+        lines.append(
+            f"note: track {e['track_label']} is not the track the policy was trained on "
+            f"({track_label(trained['name'], trained.get('given'))})"
+        )
     if p["same_arithmetic_reference"] is not None:
         lines.append(
             f"parity vs numpy reference ({p['same_arithmetic_reference']}, same arithmetic): "

@@ -103,7 +103,7 @@ def _run(out: Path, steps: int, lava_episodes: int) -> dict[str, Any] | None:
     console.print(
         f"[3/4] torch policy vs its fixed-point twin on the same {QUANT_EPISODES} episodes"
     )
-    env = make_env(run.config)
+    env = make_env(run.config, track=run.track)
     try:
         torch_summary = _score(TorchPredictor(run, seed=EVAL_SEED), env, "torch")
         fixed_summary = _score(NIRReference(nir_path, "fixed", seed=EVAL_SEED), env, "fixed point")

@@ -11,6 +11,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 
 from snnkart import faults
 from snnkart.envs.constants import RENDER_FPS
+from snnkart.envs.tracks import track_label
 from snnkart.rl.config import TrainConfig
 
 console = Console(stderr=True)
@@ -28,7 +29,8 @@ def run_training(cfg: TrainConfig, run_dir: Path, resume: bool = False) -> int:
     trainer = Trainer(cfg, run_dir, resume=resume)
     cfg = trainer.cfg
     console.print(
-        f"training {cfg.policy.upper()} on {cfg.env}/{cfg.track} ({cfg.action_mode}), "
+        f"training {cfg.policy.upper()} on {cfg.env}/{track_label(trainer.track.name, cfg.track)} "
+        f"({cfg.action_mode}), "
         f"{cfg.total_steps:,} steps, seed {cfg.seed} -> {run_dir}"
         + (f" (resuming at step {trainer.progress.global_step:,})" if resume else "")
     )
@@ -91,7 +93,9 @@ def run_eval(
     render: bool,
     video: Path | None,
     out: Path | None,
+    track: str | None = None,
 ) -> None:
+    from snnkart.envs.tracks import embed_track, load_track, track_sha256
     from snnkart.evaluate import EvalSummary, run_episodes, write_eval
     from snnkart.rl.ppo import make_env
     from snnkart.rl.run import TorchPredictor, load_run
@@ -102,8 +106,16 @@ def run_eval(
         if render:
             raise ValueError("choose either --render (a window) or --video (a file), not both")
     run = load_run(run_dir, checkpoint)
+    assert run.track is not None
+    trained = embed_track(run.track, run.config.track)
+    del trained["toml"]
+    chosen, given = (
+        (load_track(track), track) if track is not None else (run.track, run.config.track)
+    )
+    override = track_sha256(chosen) != trained["sha256"]
+    label = track_label(chosen.name, given)
     mode = "human" if render else ("rgb_array" if video is not None else None)
-    env = make_env(run.config, render_mode=mode)
+    env = make_env(run.config, render_mode=mode, track=chosen)
     predictor = TorchPredictor(run, seed=seed)
     with contextlib.ExitStack() as stack:
         stack.callback(env.close)
@@ -134,26 +146,36 @@ def run_eval(
             "global_step": run.meta.get("global_step"),
             "policy": run.config.policy,
             "env": run.config.env,
-            "track": run.config.track,
+            "track": chosen.name,
+            "track_given": str(given),
+            "track_sha256": track_sha256(chosen),
+            "trained_track": trained,
+            "track_override": override,
             "first_seed": seed,
         },
     )
     print(
-        f"{run.config.policy.upper()} {run.config.env}/{run.config.track} "
+        f"{run.config.policy.upper()} {run.config.env}/{label} "
         f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: "
         f"success {summary.success_rate:.0%}, return {summary.mean_return:.2f} "
         f"+- {summary.std_return:.2f}, lap time {_fmt(summary.mean_lap_time)} s, "
         f"crashes {summary.crashes}, stood still {summary.stood_still}, "
         f"time-outs {summary.timeouts}"
     )
+    if override:
+        print(
+            f"note: track {label} is not the track the policy was trained on "
+            f"({track_label(trained['name'], trained['given'])})"
+        )
     print(f"results written to {path}")
 
 
 def run_replay(run_dir: Path, mode: str, out: Path | None, every: int) -> None:
     from snnkart.envs.render import Renderer
     from snnkart.replay import frames, load_ghosts
+    from snnkart.rl.checkpoint import load_checkpoint
     from snnkart.rl.config import read_run_config
-    from snnkart.rl.ppo import make_env
+    from snnkart.rl.ppo import checkpoint_track, make_env
     from snnkart.video import check_video_path, video_writer
 
     if every < 1:
@@ -162,7 +184,9 @@ def run_replay(run_dir: Path, mode: str, out: Path | None, every: int) -> None:
         check_video_path(out)
     cfg = read_run_config(run_dir)
     ghosts = load_ghosts(run_dir)
-    env = make_env(cfg).unwrapped
+    latest = run_dir / "checkpoint.pt"  # carries the track, which may have moved since
+    track = checkpoint_track(load_checkpoint(latest)[1], cfg, latest) if latest.is_file() else None
+    env = make_env(cfg, track=track).unwrapped
     renderer = Renderer(env, human=out is None)  # type: ignore[arg-type]
     try:
         if out is None:

@@ -24,15 +24,16 @@ def train_tiny(
     action_mode: str = "discrete",
     total_steps: int = 512,
     extra_sets: Sequence[str] = (),
+    track: str = "small_S",
 ) -> Path:
-    """Train ``policy`` on ``env``/small_S for ``total_steps`` steps into ``run_dir``."""
+    """Train ``policy`` on ``env``/``track`` for ``total_steps`` steps into ``run_dir``."""
     cfg = load_config(
         overrides={
             "env": env,
             "policy": policy,
             "total_steps": total_steps,
             "action_mode": action_mode,
-            "track": "small_S",
+            "track": track,
         },
         sets=[*TINY, *extra_sets],
     )

@@ -27,6 +27,7 @@ whose jitter box lets the kart touch a wall.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 import math
@@ -165,6 +166,45 @@ def load_track(track: str | Path | Track) -> Track:
     except UnicodeDecodeError as exc:
         raise TrackError(f"{path}: not a text file ({exc}); a track is a TOML file") from exc
     return parse_track(text, source=str(path))
+
+
+def track_sha256(track: Track) -> str:
+    """The content hash of a track's geometry (of its canonical TOML text)."""
+    return hashlib.sha256(track.to_toml().encode()).hexdigest()
+
+
+def is_builtin(given: str | Path) -> bool:
+    return str(given) in BUILTIN_TRACKS
+
+
+def embed_track(track: Track, given: str | Path) -> dict[str, str]:
+    """A track as checkpoints and NIR manifests carry it: its name, how the user named it
+    (a built-in name, or the file path as given), its content hash and its validated TOML, so
+    a policy's track can be rebuilt on any machine without the original file."""
+    return {
+        "name": track.name,
+        "given": str(given),
+        "sha256": track_sha256(track),
+        "toml": track.to_toml(),
+    }
+
+
+def embedded_track(record: dict[str, Any], where: str) -> Track:
+    """Rebuild a track from :func:`embed_track`'s record (``where`` names the file it is in)."""
+    try:
+        track = parse_track(record["toml"], source=f"track {record['name']!r} embedded in {where}")
+    except (KeyError, TypeError) as exc:
+        raise TrackError(f"{where}: malformed embedded track ({exc})") from exc
+    if track_sha256(track) != record.get("sha256"):
+        raise TrackError(f"{where}: the embedded track does not match its hash (edited by hand?)")
+    return track
+
+
+def track_label(name: str, given: str | Path | None) -> str:
+    """How messages name a track: its name, and for a file the path as the user gave it."""
+    if given is None or is_builtin(given) or str(given) == name:
+        return name
+    return f"{name} ({given})"
 
 
 def parse_track(text: str, source: str = "<string>") -> Track:

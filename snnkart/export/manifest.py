@@ -17,7 +17,10 @@ from typing import Any
 
 from snnkart.io import atomic_path
 
-MANIFEST_SCHEMA = "snnkart/manifest/v1"
+MANIFEST_SCHEMA = "snnkart/manifest/v2"
+"""v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests still
+load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
+READABLE_SCHEMAS = ("snnkart/manifest/v1", MANIFEST_SCHEMA)
 
 
 class ManifestError(ValueError):
@@ -53,6 +56,7 @@ class Manifest:
     versions: dict[str, str]
     training: dict[str, Any] = field(default_factory=dict)
     encoding_rng: str | None = None  # rate encoding: how every backend draws the input spikes
+    track: dict[str, str] | None = None  # the trained track (v2; None in v1 manifests)
 
     @property
     def obs_dim(self) -> int:
@@ -67,9 +71,11 @@ class Manifest:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise ManifestError(f"{source}: not valid JSON ({exc})") from exc
-        if not isinstance(data, dict) or data.get("schema") != MANIFEST_SCHEMA:
+        if not isinstance(data, dict) or data.get("schema") not in READABLE_SCHEMAS:
             found = data.get("schema") if isinstance(data, dict) else type(data).__name__
-            raise ManifestError(f"{source}: schema {found!r} is not {MANIFEST_SCHEMA!r}")
+            raise ManifestError(
+                f"{source}: schema {found!r} is not one of {', '.join(map(repr, READABLE_SCHEMAS))}"
+            )
         try:
             data["layers"] = tuple(LayerSpec(**layer) for layer in data["layers"])
             for key in ("obs_mean", "obs_std", "obs_low", "obs_high"):
@@ -77,6 +83,8 @@ class Manifest:
             manifest = cls(**data)
         except (KeyError, TypeError) as exc:
             raise ManifestError(f"{source}: malformed manifest ({exc})") from exc
+        if manifest.schema == MANIFEST_SCHEMA and not isinstance(manifest.track, dict):
+            raise ManifestError(f"{source}: a {MANIFEST_SCHEMA} manifest embeds its track")
         if manifest.encoding not in ("current", "rate"):
             raise ManifestError(f"{source}: unknown encoding {manifest.encoding!r}")
         return manifest

@@ -36,6 +36,7 @@ from torch import nn
 from snnkart import faults
 from snnkart.envs import ENV_IDS
 from snnkart.envs.base import KartEnv
+from snnkart.envs.tracks import Track, embed_track, embedded_track, load_track
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import (
     RunningMeanStd,
@@ -108,14 +109,26 @@ def normalize_obs(rms: RunningMeanStd, ppo: PPOConfig, raw: np.ndarray) -> np.nd
     return np.asarray(raw, dtype=np.float32)
 
 
-def make_env(cfg: TrainConfig, render_mode: str | None = None) -> gym.Env:
+def make_env(
+    cfg: TrainConfig, render_mode: str | None = None, track: str | Path | Track | None = None
+) -> gym.Env:
+    """The env of ``cfg``; ``track`` (e.g. the one embedded in a checkpoint) instead of
+    ``cfg.track``."""
     return gym.make(
         ENV_IDS[cfg.env],
-        track=cfg.track,
+        track=cfg.track if track is None else track,
         action_mode=cfg.action_mode,
         config=cfg.env_config or None,
         render_mode=render_mode,
     )
+
+
+def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Track:
+    """The track a checkpoint was trained on: the one embedded in it, or for checkpoints
+    written before tracks were embedded, ``cfg.track`` (which must then still exist)."""
+    if meta.get("track"):
+        return embedded_track(meta["track"], str(source))
+    return load_track(cfg.track)
 
 
 def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
@@ -183,6 +196,12 @@ class Trainer:
                 "or choose another --out"
             )
         self.cfg = cfg
+        # A resumed run trains on the track its checkpoint carries: the file may have moved.
+        latest = self.run_dir / "checkpoint.pt"
+        if resume and latest.is_file():
+            self.track = checkpoint_track(load_checkpoint(latest)[1], cfg, latest)
+        else:
+            self.track = load_track(cfg.track)
         torch.set_num_threads(cfg.run.torch_threads)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         with atomic_path(config_path) as tmp:
@@ -190,7 +209,7 @@ class Trainer:
 
         p = cfg.ppo
         self.envs = gym.vector.SyncVectorEnv(
-            [lambda: EpisodeEndInfo(make_env(cfg))] * p.num_envs,
+            [lambda: EpisodeEndInfo(make_env(cfg, track=self.track))] * p.num_envs,
             autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
         )
         self.karts: list[KartEnv] = [e.unwrapped for e in self.envs.envs]  # type: ignore[misc]
@@ -236,6 +255,7 @@ class Trainer:
             "env_spec": self.spec,
             "env_spec_hash": spec_hash(self.spec),
             "config": self.cfg.model_dump(mode="json", by_alias=True),
+            "track": embed_track(self.track, self.cfg.track),
             **self.progress.state(),
         }
         latest = self.run_dir / "checkpoint.pt"

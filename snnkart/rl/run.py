@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from snnkart.backends.host import rate_probabilities, rate_spikes
+from snnkart.envs.tracks import Track, TrackError, embed_track
 from snnkart.rl.checkpoint import (
     CheckpointError,
     RunningMeanStd,
@@ -18,7 +19,7 @@ from snnkart.rl.checkpoint import (
 )
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, SNNPolicy
-from snnkart.rl.ppo import make_env, normalize_obs, policy_for
+from snnkart.rl.ppo import checkpoint_track, make_env, normalize_obs, policy_for
 
 
 @dataclass
@@ -29,6 +30,13 @@ class LoadedRun:
     obs_rms: RunningMeanStd
     meta: dict[str, Any]
     checkpoint: Path
+    track: Track | None = None
+    """The track the policy was trained on (embedded in the checkpoint, or ``config.track``)."""
+
+    def track_record(self) -> dict[str, str]:
+        """The trained track as manifests and records carry it (see ``embed_track``)."""
+        assert self.track is not None
+        return embed_track(self.track, self.config.track)
 
 
 def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> LoadedRun:
@@ -38,7 +46,14 @@ def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Loade
     cfg = read_run_config(run_dir)
     ckpt = Path(checkpoint) if checkpoint is not None else run_dir / "checkpoint.pt"
     state, meta = load_checkpoint(ckpt)
-    env = make_env(cfg)
+    try:
+        track = checkpoint_track(meta, cfg, ckpt)
+    except TrackError as exc:
+        raise CheckpointError(
+            f"{ckpt}: {exc} (this checkpoint predates embedded tracks: put the track file back "
+            "where it was trained, or retrain)"
+        ) from exc
+    env = make_env(cfg, track=track)
     try:
         check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]
         policy = policy_for(cfg, env.unwrapped)  # type: ignore[arg-type]
@@ -51,7 +66,8 @@ def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Loade
             f"{ckpt}: weights do not fit the policy in config.toml ({exc})"
         ) from exc
     policy.eval()
-    return LoadedRun(run_dir, cfg, policy, RunningMeanStd.from_state(state["obs_rms"]), meta, ckpt)
+    obs_rms = RunningMeanStd.from_state(state["obs_rms"])
+    return LoadedRun(run_dir, cfg, policy, obs_rms, meta, ckpt, track)
 
 
 class TorchPredictor:
