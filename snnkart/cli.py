@@ -324,7 +324,13 @@ def _deploy_and_print(
     from snnkart.backends.lava_sim import LavaBackendError
     from snnkart.backends.network import UnsupportedGraphError
     from snnkart.backends.reference import NIRFileError
-    from snnkart.deploy import DeployError, DeployWriteError, run_deploy, summary_lines
+    from snnkart.deploy import (
+        DeployError,
+        DeployWriteError,
+        ParityError,
+        run_deploy,
+        summary_lines,
+    )
     from snnkart.export.manifest import ManifestError
 
     try:
@@ -339,10 +345,12 @@ def _deploy_and_print(
     except KeyboardInterrupt as exc:
         stopped = "no Lava process is left running; " if backend == "lava-sim" else ""
         _interrupted(exc, f"{stopped}no results were written")
-    except DeployWriteError as exc:
+    except (DeployWriteError, ParityError) as exc:
         for line in summary_lines(exc.record):
             typer.echo(line)
-        _fail(str(exc))
+        if out is not None and isinstance(exc, ParityError):
+            typer.echo(f"results written to {out / 'deploy.json'}")
+        _fail(str(exc), code=4 if isinstance(exc, ParityError) else 2)
     except (
         NIRFileError, ManifestError, DeployError, LavaBackendError, UnsupportedGraphError
     ) as exc:  # fmt: skip

@@ -42,6 +42,14 @@ class DeployError(ValueError):
     """Bad deploy input: the message names the problem and what to do."""
 
 
+class ParityError(DeployError):
+    """The backend differed from its same-arithmetic reference; ``record`` holds the run."""
+
+    def __init__(self, message: str, record: dict[str, Any]) -> None:
+        super().__init__(message)
+        self.record = record
+
+
 class DeployWriteError(DeployError):
     """The run finished but its record could not be written; ``record`` holds it."""
 
@@ -186,6 +194,10 @@ class Parity:
     float32_spike_flips: int = 0
     neuron_steps: int = 0
     float32_count_differences: list[int] = field(default_factory=list)
+    first_mismatch: dict[str, int] | None = None
+    """Where the backend first differed from its same-arithmetic reference: the env step
+    (counted over the whole deploy, from 0), the episode, the step within it, the layer and
+    the row of the window."""
 
     def as_dict(self) -> dict[str, Any]:
         n = max(self.env_steps, 1)
@@ -199,6 +211,7 @@ class Parity:
             "float32_spike_flips_per_million_neuron_steps": (
                 1e6 * self.float32_spike_flips / max(self.neuron_steps, 1)
             ),
+            "first_same_arithmetic_mismatch": self.first_mismatch,
         }
 
 
@@ -220,9 +233,12 @@ class CheckedPredictor:
         self.float32 = float32
         self.parity = Parity(exact_reference=None if exact is None else exact.mode)
         self.step_seconds = 0.0
+        self.episode, self.episode_step = -1, 0  # where the first parity mismatch happened
 
     def reset(self) -> None:
         self.primary.reset()
+        self.episode += 1
+        self.episode_step = 0
 
     def predict(self, obs: np.ndarray) -> Any:
         faults.fault_point("step")
@@ -234,14 +250,34 @@ class CheckedPredictor:
         p.env_steps += 1
         if self.exact is not None:
             ref_window, ref_out = self.exact.step(obs)
-            p.exact_mismatched_windows += not np.array_equal(window.raster, ref_window.raster)
+            differs = not np.array_equal(window.raster, ref_window.raster)
+            p.exact_mismatched_windows += differs
             p.exact_mismatched_actions += not _same_action(action, self.exact.codec.decode(ref_out))
+            if differs and p.first_mismatch is None:
+                p.first_mismatch = _where(window.raster, ref_window.raster, self.exact.chain.sizes)
+                p.first_mismatch.update(
+                    env_step=p.env_steps - 1, episode=self.episode, episode_step=self.episode_step
+                )
+        self.episode_step += 1
         if self.float32 is not None:
             f_window, f_out = self.float32.step(obs)
             p.float32_action_agreement += _same_action(action, self.float32.codec.decode(f_out))
             p.float32_spike_flips += _flips(window, f_window)
             p.neuron_steps += f_window.logical.size
         return action
+
+
+def _where(raster: np.ndarray, reference: np.ndarray, sizes: tuple[int, ...]) -> dict[str, int]:
+    """The first layer (and window row) in which two rasters differ."""
+    if raster.shape != reference.shape:
+        return {"layer": -1, "row": -1}
+    offsets = np.cumsum((0, *sizes))
+    for layer in range(len(sizes)):
+        cols = slice(int(offsets[layer]), int(offsets[layer + 1]))
+        rows = np.flatnonzero((raster[:, cols] != reference[:, cols]).any(axis=1))
+        if rows.size:
+            return {"layer": layer, "row": int(rows[0])}
+    return {"layer": -1, "row": -1}
 
 
 def _flips(a: WindowResult, b: WindowResult) -> int:
@@ -392,7 +428,28 @@ def run_deploy(
                 "its summary is printed above; free space or choose another --out and run again",
                 record,
             ) from exc
+    check_parity(record)
     return record
+
+
+def check_parity(record: dict[str, Any]) -> None:
+    """Raise :class:`ParityError` if any env step differed from the same-arithmetic reference:
+    "every env step checked" is a guard, not only a measurement."""
+    p = record["parity"]
+    bad = p.get("same_arithmetic_mismatched_windows", 0)
+    if not bad:
+        return
+    first = p.get("first_same_arithmetic_mismatch") or {}
+    layer = first.get("layer", -1)
+    raise ParityError(
+        f"parity failure: {record['backend']} ({record['precision']}) differs from the numpy "
+        f"reference ({p['same_arithmetic_reference']}) in {bad} of {p['env_steps']} env steps; "
+        f"the first is env step {first.get('env_step')} (episode {first.get('episode')}, step "
+        f"{first.get('episode_step')}), "
+        + (f"layer {layer}, window row {first.get('row')}" if layer >= 0 else "window shape")
+        + "; this is a bug in the backend or the reference (please report it with the NIR file)",
+        record,
+    )
 
 
 def summary_lines(record: dict[str, Any]) -> list[str]:
@@ -447,6 +504,7 @@ __all__ = [
     "DeployError",
     "DeployWriteError",
     "ManifestError",
+    "ParityError",
     "run_deploy",
     "summary_lines",
 ]

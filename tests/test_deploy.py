@@ -773,6 +773,45 @@ def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: 
 
 @pytest.mark.lava
 @pytest.mark.timeout(120)
+def test_a_parity_mismatch_fails_the_deploy(
+    exported: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A Lava window that differs from its same-arithmetic reference in one spike (flipped
+    here, at env step 5, layer 1, after real Lava computed it) fails the command, naming the
+    step and the layer; the record is kept as evidence."""
+    real_step = LavaSimPredictor.step
+    calls = {"n": 0}
+
+    def step_with_one_flipped_spike(self: LavaSimPredictor, obs: Any) -> Any:
+        window, out = real_step(self, obs)
+        calls["n"] += 1
+        if calls["n"] == 6:  # env step 5 of the deploy
+            raster = window.raster.copy()
+            raster[3, self.chain.sizes[0] + 2] ^= True  # layer 1, window row 3
+            window = dataclasses.replace(window, raster=raster)
+        return window, out
+
+    monkeypatch.setattr(LavaSimPredictor, "step", step_with_one_flipped_spike)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        app,
+        ["deploy", str(exported), "--backend", "lava-sim", "--episodes", "2", "--out", str(out)],
+    )
+    assert result.exit_code == 4, result.output
+    message = " ".join(result.output.split())
+    assert "parity failure: lava-sim (fixed) differs from the numpy reference (fixed) in 1 of" in (
+        message
+    ), message
+    assert "env step 5 (episode 0, step 5), layer 1, window row 3" in message, message
+    record = json.loads((out / "deploy.json").read_text())
+    assert record["parity"]["same_arithmetic_mismatched_windows"] == 1
+    assert record["parity"]["first_same_arithmetic_mismatch"] == {
+        "layer": 1, "row": 3, "env_step": 5, "episode": 0, "episode_step": 5,
+    }  # fmt: skip
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(120)
 def test_cli_deploy_lava_fixed_writes_the_record(exported: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
     result = CliRunner().invoke(
