@@ -11,6 +11,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -121,3 +122,53 @@ def test_first_minibatch_ratio_is_one(
         assert progress.episodes >= 2 * (192 // 20)
         lengths = [r["charts/episodic_length"] for r in records if r["charts/episodic_length"]]
         assert lengths and max(lengths) <= 20
+
+
+def test_trainer_bootstraps_time_limit_truncations(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The rewards GAE receives carry ``gamma * V(final_obs)`` at every time-limit truncation
+    and nothing extra elsewhere. V is computed here from the rollout's own policy and
+    normaliser (copied at each env step), not by the Trainer's code path."""
+    from snnkart.rl.ppo import normalize_obs
+
+    cfg = load_config(
+        overrides={"env": "grid", "policy": "ann", "total_steps": 128, "track": "small_S"},
+        sets=[*TINY, "env_config.max_episode_steps=20"],
+    )
+    trainer = Trainer(cfg, tmp_path / "run")
+    expected: list[np.ndarray] = []
+    truncations = 0
+    real_step = trainer.envs.step
+
+    def step(action: np.ndarray) -> tuple:
+        nonlocal truncations
+        obs, reward, terminated, truncated, info = real_step(action)
+        want = reward.astype(np.float64).copy()
+        for i in np.flatnonzero(truncated):
+            final = np.asarray(info["final_obs"][i], dtype=np.float64)[None]
+            norm = normalize_obs(trainer.obs_rms, cfg.ppo, final)
+            with torch.no_grad():
+                value = float(trainer.policy.value(torch.from_numpy(norm))[0])
+            assert abs(value) > 1e-4  # a bootstrap that could be told from none
+            want[i] += cfg.ppo.gamma * value
+            truncations += 1
+        expected.append(want.astype(np.float32))
+        return obs, reward, terminated, truncated, info
+
+    seen: list[torch.Tensor] = []
+    real_gae = compute_gae
+
+    def gae(rewards: torch.Tensor, *args: object, **kwargs: object) -> tuple:
+        seen.append(rewards.clone())
+        return real_gae(rewards, *args, **kwargs)
+
+    monkeypatch.setattr(trainer.envs, "step", step)
+    monkeypatch.setattr("snnkart.rl.ppo.compute_gae", gae)
+    try:
+        trainer.train()
+    finally:
+        trainer.close()
+    assert truncations >= 4, "the test needs time-limit truncations inside the rollout"
+    assert len(seen) == 1  # one iteration of 64 steps x 2 envs
+    torch.testing.assert_close(seen[0], torch.from_numpy(np.stack(expected)), rtol=0, atol=1e-6)
