@@ -13,7 +13,8 @@ import pytest
 from snnkart.envs.grid import GridEnv
 from snnkart.envs.tracks import BUILTIN_TRACKS, Track, TrackError, load_track, parse_track
 
-UPSTREAM_DIR = Path(__file__).resolve().parents[2] / "shared" / "tracks-upstream"
+UPSTREAM_DIR = Path(__file__).resolve().parent / "data" / "tracks-upstream"
+"""The original project's track files, vendored with their licence (see its README.md)."""
 CONVERTER = Path(__file__).resolve().parents[1] / "scripts" / "convert_upstream_tracks.py"
 
 # A valid 400 x 400 px box; tests below break one thing at a time.
@@ -283,9 +284,6 @@ def load_converter():
     return module
 
 
-@pytest.mark.skipif(
-    not UPSTREAM_DIR.is_dir(), reason=f"upstream track files not found at {UPSTREAM_DIR}"
-)
 @pytest.mark.parametrize("name", BUILTIN_TRACKS)
 def test_builtin_tracks_match_upstream_conversion(name):
     """Converting the original kart-simulator files reproduces the shipped geometry exactly."""
