@@ -137,3 +137,57 @@ def test_layer_two_current_matches_for_the_same_spikes(
     bound = (s.sum(axis=1, keepdims=True) + (0.5 + 0.5 * 2.0**q.bias_exp) / 2**ACT_SHIFT) / q.scale
     assert s.sum() > 0, "layer 1 never fired: the comparison would be vacuous"
     assert np.all(np.abs(fixed_current - float_current) <= bound * (1 + 1e-9) + 1e-9)
+
+
+# -- closed loop, on a policy that drives -----------------------------------------------------
+
+FIXTURE = Path(__file__).resolve().parent / "data" / "policies" / "grid-snn"
+"""A grid/small_S SNN trained for 300k steps with the defaults (seed 1), optimizer state
+dropped; made by ``scripts/make_test_policy.py``."""
+EPISODES = 20
+FIRST_SEED = 10_000
+
+
+class _Shadowed:
+    """Drives with ``primary`` and counts how often ``shadow`` picks the same action."""
+
+    def __init__(self, primary: object, shadow: NIRReference) -> None:
+        self.primary, self.shadow = primary, shadow
+        self.steps = self.same = 0
+
+    def reset(self) -> None:
+        self.primary.reset()  # type: ignore[attr-defined]
+        self.shadow.reset()
+
+    def predict(self, obs: np.ndarray) -> object:
+        action = self.primary.predict(obs)  # type: ignore[attr-defined]
+        self.steps += 1
+        self.same += int(action == self.shadow.predict(obs))
+        return action
+
+
+def test_fixed_point_drives_like_the_trained_policy(tmp_path: Path) -> None:
+    """On 20 seeded episodes: the fixed-point network picks the trained policy's action on at
+    least 98 % of the steps it drives, and finishes within 5 points of it."""
+    from snnkart.evaluate import EvalSummary, run_episodes
+    from snnkart.rl.run import TorchPredictor
+
+    run = load_run(FIXTURE)
+    nir_path, _ = export_nir(run, tmp_path / "policy.nir")
+    env = make_env(run.config, track=run.track)
+    try:
+        by_torch = _Shadowed(TorchPredictor(run, seed=FIRST_SEED), NIRReference(nir_path, "fixed"))
+        torch_runs = run_episodes(env, by_torch, EPISODES, FIRST_SEED)
+        by_fixed = _Shadowed(NIRReference(nir_path, "fixed"), NIRReference(nir_path, "float32"))
+        fixed_runs = run_episodes(env, by_fixed, EPISODES, FIRST_SEED)
+    finally:
+        env.close()
+    torch_success = EvalSummary.of(torch_runs).success_rate
+    fixed_success = EvalSummary.of(fixed_runs).success_rate
+    agreement = by_torch.same / by_torch.steps
+    print(f"\nfixed vs torch: {agreement:.2%} identical actions over {by_torch.steps} steps; "
+          f"success torch {torch_success:.0%}, fixed {fixed_success:.0%}")  # fmt: skip
+    assert torch_success >= 0.8, "the fixture does not drive: the comparison would be weak"
+    assert agreement >= 0.98
+    assert abs(torch_success - fixed_success) <= 0.05 + 1e-9
+    assert by_fixed.same / by_fixed.steps >= 0.98  # the fixed driver vs float32 reference
