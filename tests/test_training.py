@@ -528,17 +528,38 @@ def test_replay_unknown_mode_fails_cleanly(
 # -- learning ----------------------------------------------------------------------------------
 
 
+# What the README's learning table claims, at small scale and in the default run: a grid
+# policy trained with the defaults drives a lap in at least 80 % of 20 seeded deterministic
+# evaluation episodes. Seeds are fixed; if a change flips one, run 3 seeds before touching it.
+LEARNING = {"ann": 300_000, "snn": 200_000}  # about 90 s each here
+# Probes at seed 1 (eval success): ANN 100k 65 %, 150k 70 %, 300k 90 %; SNN 150k 45 %,
+# 200k 90 %. Shorter runs anneal the learning rate to 0 sooner and stop under-trained.
+
+
 @pytest.mark.slow
-def test_ann_learns_to_finish_grid_small_s(tmp_path: Path) -> None:
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("policy", ["ann", "snn"])
+def test_grid_policy_learns_to_drive(tmp_path: Path, policy: str) -> None:
+    from snnkart.evaluate import EvalSummary, run_episodes
+    from snnkart.rl.run import TorchPredictor, load_run
+
     cfg = load_config(
-        overrides={"env": "grid", "track": "small_S", "policy": "ann", "total_steps": 120_000,
-                   "seed": 2},
-        sets=["run.tensorboard=false"],
+        overrides={"env": "grid", "track": "small_S", "policy": policy,
+                   "total_steps": LEARNING[policy], "seed": 1},
+        sets=["run.tensorboard=false", "run.trajectories=false"],
     )  # fmt: skip
     trainer = train(cfg, tmp_path / "run")
-    assert trainer.progress.global_step >= 120_000
-    assert trainer.progress.finishes > 0, trainer.progress
-    assert trainer.progress.first_finish_step > 0
+    assert trainer.progress.first_finish_step > 0, trainer.progress
+    run = load_run(tmp_path / "run")
+    env = make_env(run.config, track=run.track)
+    try:
+        results = run_episodes(env, TorchPredictor(run, seed=10_000), 20, 10_000)
+    finally:
+        env.close()
+    summary = EvalSummary.of(results)
+    print(f"\n{policy} {LEARNING[policy]:,} steps: first finish at "
+          f"{trainer.progress.first_finish_step:,}, eval success {summary.success_rate:.0%}")  # fmt: skip
+    assert summary.success_rate >= 0.8, summary
 
 
 @pytest.mark.parametrize("anneal", [True, False])
