@@ -134,6 +134,14 @@ def main() -> None:
         "env_steps": n,
         "num_steps_T": run.config.snn.num_steps,
         "hidden": list(run.config.snn.hidden),
+        "policy": {  # which policy was timed: the run, its checkpoint and what made it
+            "run": str(args.run) if args.run is not None else "tiny run trained by the benchmark",
+            "env": run.config.env,
+            "track": run.track.name if run.track is not None else run.config.track,
+            "global_step": run.meta.get("global_step"),
+            "checkpoint_versions": run.meta.get("versions"),
+            "env_spec_hash": run.meta.get("env_spec_hash"),
+        },
         "io_pattern": "host bridge process, one non-blocking RunSteps per session, one message "
                       "each way per env step (current in, spike raster out), LIFReset/Dense "
                       "library processes",

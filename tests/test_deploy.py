@@ -831,7 +831,9 @@ def test_cli_deploy_lava_fixed_writes_the_record(exported: Path, tmp_path: Path)
     assert parity["same_arithmetic_mismatched_windows"] == 0
     assert parity["same_arithmetic_mismatched_actions"] == 0
     assert parity["env_steps"] == counts["env_steps"] == episode["length"] > 0
-    assert 0.0 <= parity["float32_identical_action_fraction"] <= 1.0
+    # (fixed-vs-float agreement is a claim about a policy that drives: tests/test_fixed_point.py;
+    # this tiny policy picks one action, so its fraction here could not fail)
+    assert "float32_identical_action_fraction" in parity
     assert episode["counts"] == counts
     assert record["summary"]["episodes"] == 1
     assert len(record["quantization"]) == 2 and record["quantization"][1]["weight_bits"] == 8
