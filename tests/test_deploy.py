@@ -23,6 +23,7 @@ import nir
 import numpy as np
 import pytest
 import torch
+from process_marks import marked_processes, shm_segments
 from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
@@ -691,31 +692,11 @@ def test_deploy_without_lava_fails_clearly(exported: Path, tmp_path: Path) -> No
 # -- 8. Ctrl-C to the process group mid-episode ---------------------------------------------------
 
 
-def _marked_processes(mark: str) -> list[tuple[int, str]]:
-    needle = f"SNNKART_TEST_MARK={mark}".encode()
-    found = []
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            environ = Path(f"/proc/{entry}/environ").read_bytes().split(b"\0")
-            cmdline = Path(f"/proc/{entry}/cmdline").read_bytes().replace(b"\0", b" ")
-        except OSError:
-            continue
-        if needle in environ:
-            found.append((int(entry), cmdline.decode(errors="replace")))
-    return found
-
-
-def _shm() -> set[str]:
-    return {name for name in os.listdir("/dev/shm") if name.startswith("psm_")}
-
-
 @pytest.mark.lava
 @pytest.mark.timeout(120)
 def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: Path) -> None:
     mark = uuid.uuid4().hex
-    shm_before = _shm()
+    shm_before = shm_segments()
     out = tmp_path / "out"
     args = [
         "deploy",
@@ -739,16 +720,16 @@ def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: 
     try:
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
-            procs = _marked_processes(mark)
+            procs = marked_processes(mark)
             if any("lava_worker" in cmd for _, cmd in procs) and len(procs) >= 4:
                 break  # the worker and its Lava runtime processes are up
             assert proc.poll() is None, proc.communicate()
             time.sleep(0.2)
         else:
-            pytest.fail(f"the Lava worker did not start: {_marked_processes(mark)}")
+            pytest.fail(f"the Lava worker did not start: {marked_processes(mark)}")
         time.sleep(3.0)  # ~250 env steps: well into the deploy, in the middle of an episode
         assert proc.poll() is None, "the deploy ended before it could be interrupted"
-        assert len(_shm() - shm_before) > 0  # Lava's shared memory exists while it runs
+        assert len(shm_segments() - shm_before) > 0  # Lava's shared memory exists while it runs
         os.killpg(proc.pid, signal.SIGINT)
         t0 = time.monotonic()
         stdout, stderr = proc.communicate(timeout=10)
@@ -761,10 +742,10 @@ def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: 
     assert stopped < 10
     assert not (out / "deploy.json").exists()  # no partial record
     deadline = time.monotonic() + 3
-    while time.monotonic() < deadline and (_marked_processes(mark) or _shm() - shm_before):
+    while time.monotonic() < deadline and (marked_processes(mark) or shm_segments() - shm_before):
         time.sleep(0.1)
-    assert _marked_processes(mark) == [], "processes of the deploy survived Ctrl-C"
-    assert _shm() - shm_before == set(), "Lava's shared memory was left in /dev/shm"
+    assert marked_processes(mark) == [], "processes of the deploy survived Ctrl-C"
+    assert shm_segments() - shm_before == set(), "Lava's shared memory was left in /dev/shm"
     print(f"\nSIGINT: exit code {proc.returncode} after {stopped:.2f} s; {stderr.decode()[-300:]}")
 
 

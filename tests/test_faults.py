@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from process_marks import marked_processes, shm_segments
 from tiny_runs import train_tiny
 
 from snnkart.export.nir_export import export_nir
@@ -61,27 +62,6 @@ BATCH = 2 * 64
 
 
 # -- processes, shared memory, load ----------------------------------------------------------
-
-
-def _marked(mark: str) -> list[tuple[int, str]]:
-    """Live processes whose environment carries ``mark`` (zombies have none to read)."""
-    needle = f"SNNKART_TEST_MARK={mark}".encode()
-    found = []
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit():
-            continue
-        try:
-            environ = Path(f"/proc/{entry}/environ").read_bytes().split(b"\0")
-            cmdline = Path(f"/proc/{entry}/cmdline").read_bytes().replace(b"\0", b" ")
-        except OSError:
-            continue
-        if needle in environ:
-            found.append((int(entry), cmdline.decode(errors="replace")))
-    return found
-
-
-def _shm() -> set[str]:
-    return {name for name in os.listdir("/dev/shm") if name.startswith("psm_")}
 
 
 def _children(pid: int) -> list[int]:
@@ -152,7 +132,7 @@ def run_faulted(
     full_env["SNNKART_FAULT_LOG"] = str(log)
     if fault:
         full_env["SNNKART_FAULT"] = fault
-    shm_before = _shm()
+    shm_before = shm_segments()
 
     def child_setup() -> None:
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # as in a terminal's foreground job
@@ -182,7 +162,7 @@ def run_faulted(
                 raise TimeoutError("late" if late else "timeout")
             time.sleep(0.05)
     except BaseException as exc:
-        for pid, _ in _marked(mark):
+        for pid, _ in marked_processes(mark):
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
         proc.wait()
@@ -208,14 +188,14 @@ def run_faulted(
     )  # fmt: skip
     # The worker reaps its Lava session before the command exits; /proc may lag a moment.
     deadline = time.monotonic() + 1.0
-    while (_marked(mark) or _shm() - shm_before) and time.monotonic() < deadline:
+    while (marked_processes(mark) or shm_segments() - shm_before) and time.monotonic() < deadline:
         time.sleep(0.05)
-    left = _marked(mark)
+    left = marked_processes(mark)
     for pid, _ in left:
         with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
     assert left == [], f"processes left behind: {left}\n{outcome.context()}"
-    assert _shm() - shm_before == set(), f"shared memory left behind\n{outcome.context()}"
+    assert shm_segments() - shm_before == set(), f"shared memory left behind\n{outcome.context()}"
     assert "Traceback" not in outcome.stderr, outcome.context()
     return outcome
 
