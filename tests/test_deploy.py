@@ -132,7 +132,12 @@ def _check_window(window: WindowResult, sizes: tuple[int, ...], T: int, pipeline
 @pytest.mark.timeout(180)
 @pytest.mark.parametrize(
     ("name", "precision"),
-    [("steer", "float"), ("steer", "fixed"), ("steer-continuous", "fixed")],
+    [
+        ("steer", "float"),
+        ("steer", "fixed"),
+        ("steer-continuous", "fixed"),
+        ("steer-continuous", "float"),
+    ],
 )
 def test_lava_is_bit_exact_with_the_same_arithmetic_reference(
     name: str, precision: str, excited: dict[str, tuple[LoadedRun, Path]]
