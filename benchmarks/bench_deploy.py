@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from benchmarks.common import machine_info, results_path
+from benchmarks.common import add_out_argument, machine_info, output_path
 from snnkart.backends.lava_sim import LavaSimPredictor
 from snnkart.backends.reference import NIRReference
 from snnkart.export.nir_export import export_nir
@@ -63,6 +63,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--run", type=Path, help="a trained SNN run (default: train a tiny one)")
     parser.add_argument("--steps", type=int, default=1000)
+    add_out_argument(parser)
     args = parser.parse_args()
     torch.set_num_threads(1)
 
@@ -128,7 +129,7 @@ def main() -> None:
     target = rows["lava-sim fixed"]["ms_per_env_step"]  # ms per step = s per 1000 steps
     print(f"target: Lava fixed <= 20 s per 1000 env steps: {target:.1f} s "
           f"({'met' if target <= 20 else 'NOT met'})")  # fmt: skip
-    out = results_path("bench_deploy")
+    out = output_path("bench_deploy", args.out)
     out.write_text(json.dumps({
         "machine": machine_info(),
         "env_steps": n,

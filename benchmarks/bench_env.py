@@ -23,7 +23,7 @@ import numpy as np
 import pymunk
 
 import snnkart  # noqa: F401  (registers the envs)
-from benchmarks.common import machine_info, results_path
+from benchmarks.common import add_out_argument, machine_info, output_path
 from snnkart.envs import ENV_IDS
 from snnkart.envs.lidar import cast_rays
 
@@ -109,6 +109,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=20000)
     parser.add_argument("--vector-envs", type=int, default=8)
+    add_out_argument(parser)
     args = parser.parse_args()
 
     results: dict[str, object] = {"machine": machine_info(), "steps": args.steps}
@@ -140,7 +141,7 @@ def main() -> None:
             f"{lid['pymunk_us_per_scan']:.1f} us per scan -> {lid['speedup']:.1f}x "
             f"(max |difference| {lid['max_abs_difference']:.2e})"
         )
-    path = results_path("bench_env")
+    path = output_path("bench_env", args.out)
     path.write_text(json.dumps(results, indent=2) + "\n")
     print(f"results written to {path}")
 

@@ -11,6 +11,7 @@ file after every run, so an interrupted benchmark keeps what it measured.
 
     python -m benchmarks.bench_learning [--envs grid gazebo steer] [--policies ann snn]
                                         [--seeds 1 2 3] [--steps 300000] [--jobs 2]
+                                        [--eval-episodes 20] [--out FILE]
                                         [--set ppo.ent_coef=0.02 ...]
 """
 
@@ -25,14 +26,14 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from benchmarks.common import git_commit, machine_info, results_path
+from benchmarks.common import add_out_argument, git_commit, machine_info, output_path
 
 ROOT = Path(__file__).resolve().parents[1]
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
 
 
 def one_run(
-    env: str, policy: str, seed: int, steps: int, runs: Path, sets: list[str]
+    env: str, policy: str, seed: int, steps: int, runs: Path, sets: list[str], episodes: int = 20
 ) -> dict[str, Any]:
     run_dir = runs / f"{env}-{policy}-s{seed}"
     # Resume an interrupted run only if the same code made it; set an older one aside.
@@ -53,7 +54,7 @@ def one_run(
     )  # fmt: skip
     train_seconds = time.perf_counter() - start
     subprocess.run(
-        [*SNNKART, "eval", str(run_dir), "--episodes", "20", "--seed", "10000"],
+        [*SNNKART, "eval", str(run_dir), "--episodes", str(episodes), "--seed", "10000"],
         check=True, cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
     evaluation = json.loads((run_dir / "eval.json").read_text())["summary"]
@@ -84,24 +85,28 @@ def main() -> None:
     parser.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--eval-episodes", type=int, default=20)
     parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "bench_learning")
     parser.add_argument(
         "--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
         help="a non-default setting for every run (snnkart train --set), recorded in the JSON",
     )  # fmt: skip
+    add_out_argument(parser)
     args = parser.parse_args()
 
-    path = results_path("bench_learning")
+    path = output_path("bench_learning", args.out)
     results: dict[str, Any] = {
         "machine": machine_info(),
         "steps": args.steps,
         "settings": args.sets,
+        "eval_episodes": args.eval_episodes,
         "runs": [],
     }
     jobs = [(e, p, s) for e in args.envs for p in args.policies for s in args.seeds]
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         futures = [
-            pool.submit(one_run, e, p, s, args.steps, args.runs, args.sets) for e, p, s in jobs
+            pool.submit(one_run, e, p, s, args.steps, args.runs, args.sets, args.eval_episodes)
+            for e, p, s in jobs
         ]
         for fut in futures:
             r = fut.result()

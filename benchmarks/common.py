@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import datetime as dt
 import os
 import platform
@@ -54,3 +55,18 @@ def machine_info() -> dict[str, object]:
 def results_path(name: str) -> Path:
     RESULTS.mkdir(parents=True, exist_ok=True)
     return RESULTS / f"{name}-{git_commit()}.json"
+
+
+def add_out_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--out", type=Path, default=None,
+        help="the results JSON (default: benchmarks/results/<benchmark>-<commit>.json)",
+    )  # fmt: skip
+
+
+def output_path(name: str, out: Path | None) -> Path:
+    """``out`` if given (its folder made), else the committed results file of this commit."""
+    if out is None:
+        return results_path(name)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return out

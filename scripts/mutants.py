@@ -14,6 +14,8 @@ when that run fails. The script exits non-zero if any mutant survives.
   (``LavaSimPredictor.step``); guarded by the parity tests in ``tests/test_deploy.py``.
 - ``parity-guard-off``: ``snnkart deploy`` no longer fails on a parity mismatch
   (``snnkart.deploy.check_parity`` does nothing); guarded by ``tests/test_deploy.py``.
+- ``sb3-constant-lr``: ``bench_train`` gives Stable-Baselines3 a constant learning rate while
+  snnkart anneals it (as it did before issue 13); guarded by ``tests/test_benchmarks.py``.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ MUTANTS = {
     "final-values-zero": ["tests/test_gae.py"],
     "deploy-mismatch": ["tests/test_deploy.py", "-k", "bit_exact or cli_deploy"],
     "parity-guard-off": ["tests/test_deploy.py", "-k", "parity_mismatch"],
+    "sb3-constant-lr": ["tests/test_benchmarks.py", "-k", "bench_train"],
 }
 
 
@@ -66,6 +69,16 @@ def apply(name: str) -> None:
         import snnkart.deploy
 
         snnkart.deploy.check_parity = lambda record: None
+    elif name == "sb3-constant-lr":
+        from stable_baselines3 import PPO
+
+        real_init = PPO.__init__
+
+        def init(self, *args, learning_rate=3e-4, **kwargs):  # type: ignore[no-untyped-def]
+            constant = learning_rate(1.0) if callable(learning_rate) else learning_rate
+            real_init(self, *args, learning_rate=constant, **kwargs)
+
+        PPO.__init__ = init  # type: ignore[method-assign]
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 
