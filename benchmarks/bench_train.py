@@ -253,14 +253,21 @@ def differences(ours: dict[str, Any], theirs: dict[str, Any]) -> dict[str, list[
     out: dict[str, list[Any]] = {}
     keys = sorted(set(ours["hyperparameters"]) | set(theirs["hyperparameters"]))
     for k in keys:
-        a, b = ours["hyperparameters"].get(k, "<absent>"), theirs["hyperparameters"].get(k, "<absent>")
-        same = math.isclose(a, b, rel_tol=1e-12) if isinstance(a, float) and isinstance(b, float) else a == b
+        a, b = (
+            ours["hyperparameters"].get(k, "<absent>"),
+            theirs["hyperparameters"].get(k, "<absent>"),
+        )
+        same = (
+            math.isclose(a, b, rel_tol=1e-12)
+            if isinstance(a, float) and isinstance(b, float)
+            else a == b
+        )
         if not same:
             out[k] = [a, b]
     for k in ("learning_rate_per_iteration", "ent_coef_per_iteration"):
         a, b = ours[k], theirs[k]
         if len(a) != len(b) or not all(math.isclose(x, y, rel_tol=1e-9, abs_tol=1e-15)
-                                       for x, y in zip(a, b)):  # fmt: skip
+                                       for x, y in zip(a, b, strict=True)):  # fmt: skip
             out[k] = [a, b]
     return out
 
