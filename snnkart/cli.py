@@ -76,6 +76,9 @@ def demo(
     ),
     steps: Annotated[int, typer.Option(help="training steps of the SNN")] = 400_000,
     lava_episodes: Annotated[int, typer.Option(help="episodes on lava-sim (fixed)")] = 5,
+    eval_episodes: Annotated[
+        int, typer.Option(help="seeded episodes scoring the torch policy and its fixed-point twin")
+    ] = 50,
     scripted_gif: Annotated[
         Path | None,
         typer.Option(help="instead: render the scripted driver on steer/small_S to this GIF"),
@@ -90,13 +93,13 @@ def demo(
         status = "finished" if result["lap_finished"] else "did not finish"
         typer.echo(f"scripted driver on steer/small_S: {status}; GIF written to {scripted_gif}")
         return
-    if steps < 1 or lava_episodes < 1:
-        _fail("--steps and --lava-episodes must be >= 1")
+    if steps < 1 or lava_episodes < 1 or eval_episodes < 1:
+        _fail("--steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
     from snnkart.pipeline import run_pipeline
 
     try:
-        finished = run_pipeline(out, steps, lava_episodes) is not None
+        finished = run_pipeline(out, steps, lava_episodes, eval_episodes) is not None
     except KeyboardInterrupt as exc:
         _interrupted(exc, "run the same command again to continue where it stopped")
     if not finished:

@@ -62,27 +62,27 @@ def _train(run_dir: Path, steps: int) -> int:
     return run_training(cfg, run_dir, resume=False)
 
 
-def _score(predictor: Any, env: Any, label: str) -> Any:
+def _score(predictor: Any, env: Any, label: str, episodes: int) -> Any:
     from snnkart.evaluate import EvalSummary, run_episodes
 
     with Progress(console=console, transient=True) as progress:
-        task = progress.add_task(label, total=QUANT_EPISODES)
+        task = progress.add_task(label, total=episodes)
         results = run_episodes(
-            env, predictor, QUANT_EPISODES, EVAL_SEED, on_episode=lambda r: progress.advance(task)
+            env, predictor, episodes, EVAL_SEED, on_episode=lambda r: progress.advance(task)
         )
     return EvalSummary.of(results)
 
 
 def run_pipeline(
-    out: Path, steps: int = DEMO_STEPS, lava_episodes: int = 5
+    out: Path, steps: int = DEMO_STEPS, lava_episodes: int = 5, episodes: int = QUANT_EPISODES
 ) -> dict[str, Any] | None:
     """Run the four steps; None if training was interrupted (Ctrl-C saves a checkpoint, and
     running the command again resumes)."""
     with faults.caught():  # Ctrl-C and SIGTERM are taken between env steps
-        return _run(out, steps, lava_episodes)
+        return _run(out, steps, lava_episodes, episodes)
 
 
-def _run(out: Path, steps: int, lava_episodes: int) -> dict[str, Any] | None:
+def _run(out: Path, steps: int, lava_episodes: int, episodes: int) -> dict[str, Any] | None:
     from snnkart.backends.reference import NIRReference
     from snnkart.cli import _deploy_and_print
     from snnkart.export.nir_export import export_nir
@@ -100,13 +100,13 @@ def _run(out: Path, steps: int, lava_episodes: int) -> dict[str, Any] | None:
     nir_path, manifest_file = export_nir(run, out / "policy.nir")
     console.print(f"      {nir_path}\n      {manifest_file}")
 
-    console.print(
-        f"[3/4] torch policy vs its fixed-point twin on the same {QUANT_EPISODES} episodes"
-    )
+    console.print(f"[3/4] torch policy vs its fixed-point twin on the same {episodes} episodes")
     env = make_env(run.config, track=run.track)
     try:
-        torch_summary = _score(TorchPredictor(run, seed=EVAL_SEED), env, "torch")
-        fixed_summary = _score(NIRReference(nir_path, "fixed", seed=EVAL_SEED), env, "fixed point")
+        torch_summary = _score(TorchPredictor(run, seed=EVAL_SEED), env, "torch", episodes)
+        fixed_summary = _score(
+            NIRReference(nir_path, "fixed", seed=EVAL_SEED), env, "fixed point", episodes
+        )
     finally:
         env.close()
     retained = (
@@ -119,7 +119,7 @@ def _run(out: Path, steps: int, lava_episodes: int) -> dict[str, Any] | None:
         f"{fixed_summary.success_rate:.0%} (keeps {retained:.0%})"
     )
     quant = {
-        "episodes": QUANT_EPISODES,
+        "episodes": episodes,
         "first_seed": EVAL_SEED,
         "torch": asdict(torch_summary),
         "fixed_reference": asdict(fixed_summary),

@@ -128,3 +128,30 @@ def test_bench_learning_runs_trains_and_evaluates(tmp_path):
     evaluation = json.loads((Path(run["run_dir"]) / "eval.json").read_text())
     assert len(evaluation["episodes"]) == 2
     assert run["eval_success_rate"] == evaluation["summary"]["success_rate"]
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(150)
+def test_bench_main_job_runs_the_demo_end_to_end(tmp_path):
+    """The README's main job (``snnkart demo``) on the committed driving policy: all four
+    stages run, Lava matches the reference on every env step, and the numbers are gathered."""
+    out = tmp_path / "main_job.json"
+    run_benchmark(
+        "bench_main_job", "--steps", "1000", "--lava-episodes", "1", "--eval-episodes", "5",
+        "--runs", str(tmp_path / "demo"), "--from-run", str(FIXTURE), "--out", str(out),
+        timeout=140,
+    )  # fmt: skip
+    results = json.loads(out.read_text())
+    check_machine(results)
+    assert (
+        results["training"]["global_step"]
+        == json.loads((FIXTURE / "checkpoint.json").read_text())["global_step"]
+    )  # the demo reused the run instead of training
+    quant = results["torch_vs_fixed_point"]
+    assert quant["episodes"] == 5
+    assert quant["torch_success_rate"] >= 0.8 and quant["fixed_point_success_rate"] >= 0.8
+    for precision, episodes in (("fixed", 1), ("float", 2)):
+        lava = results["lava"][precision]
+        assert lava["episodes"] == episodes and lava["env_steps"] > 100
+        assert lava["mismatched_windows"] == 0 and lava["mismatched_actions"] == 0
+        assert lava["float32_identical_action_fraction"] >= 0.95
