@@ -302,9 +302,13 @@ def test_resume_restores_the_whole_training_state(tmp_path: Path, policy: str) -
         if record["iteration"] == 2:
             os.kill(os.getpid(), signal.SIGINT)  # taken as a flag inside train()
 
+    # Ctrl-C as in a terminal, even when the suite runs with SIGINT ignored (started in the
+    # background by a non-interactive shell, where faults.caught() leaves SIGINT ignored).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         first.train(interrupt_after_two)
     finally:
+        signal.signal(signal.SIGINT, previous)
         first.close()
     assert first.interrupted and first.progress.iteration == 2
     rng_at_interrupt = torch.get_rng_state()  # before Trainer() seeds torch again
