@@ -53,7 +53,7 @@ fi
 VENV=.venv
 extras="${SNNKART_EXTRAS:-dev}"   # CI: dev,bench (every optional part)
 stamp="$VENV/.snnkart-installed"
-want="$(sha256sum pyproject.toml | cut -d' ' -f1) $PY [$extras]"
+want="$(cat pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1) $PY [$extras]"
 if ! is_py310 "$VENV/bin/python"; then
   echo "creating $VENV with $PY"
   rm -rf "$VENV"
@@ -62,7 +62,8 @@ fi
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "installing snnkart and its dependencies into $VENV (torch is large: a few minutes on a fresh machine)"
   "$VENV/bin/python" -m pip install --quiet --upgrade pip
-  "$VENV/bin/python" -m pip install --quiet -e ".[$extras]"
+  # the tested versions (constraints.txt), so a fresh install reproduces the golden values
+  "$VENV/bin/python" -m pip install --quiet -c constraints.txt -e ".[$extras]"
   echo "$want" > "$stamp"
 fi
 
