@@ -11,6 +11,8 @@ from typing import Annotated, NoReturn
 
 import typer
 
+from snnkart.errors import SnnkartError
+
 app = typer.Typer(
     name="snnkart",
     help="Train spiking and ordinary PPO racing policies, export them to NIR, run them on "
@@ -43,12 +45,12 @@ def _not_yet(command: str, what: str) -> NoReturn:
 
 def _check_env_and_track(env: str, track: str) -> str:
     from snnkart.envs import resolve_env_name
-    from snnkart.envs.tracks import TrackError, load_track
+    from snnkart.envs.tracks import load_track
 
     try:
         name = resolve_env_name(env)
         load_track(track)
-    except (ValueError, TrackError) as exc:
+    except SnnkartError as exc:
         _fail(str(exc))
     return name
 
@@ -127,9 +129,8 @@ def train(
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
 ) -> None:
     """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
-    from snnkart.envs.tracks import TrackError
-    from snnkart.rl.checkpoint import CheckpointError, CheckpointWriteError
-    from snnkart.rl.config import ConfigError, load_config
+    from snnkart.rl.checkpoint import CheckpointWriteError
+    from snnkart.rl.config import load_config
     from snnkart.train_cli import run_training
 
     overrides = {
@@ -149,7 +150,7 @@ def train(
         _interrupted(exc, "stopped before training began; the run directory is as it was")
     except (CheckpointWriteError, OSError) as exc:
         _fail(_write_failure(exc, run_dir))
-    except (ConfigError, TrackError, CheckpointError, RuntimeError) as exc:
+    except SnnkartError as exc:
         _fail(str(exc))
     raise typer.Exit(code)
 
@@ -207,9 +208,6 @@ def eval_(
     With ``--backend nir-ref|lava-sim`` RUN_DIR may also be an exported ``policy.nir``; a run
     directory is exported to NIR first. The policy runs on the track it was trained on
     (carried in its checkpoint and manifest), or on ``--track``."""
-    from snnkart.envs.tracks import TrackError
-    from snnkart.rl.checkpoint import CheckpointError
-    from snnkart.rl.config import ConfigError
     from snnkart.train_cli import run_eval
 
     if episodes < 1:
@@ -225,7 +223,7 @@ def eval_(
         run_eval(run_dir, episodes, seed, checkpoint, render, video, out, track)
     except KeyboardInterrupt as exc:
         _interrupted(exc, "no results were written")
-    except (ConfigError, CheckpointError, TrackError, ValueError) as exc:
+    except SnnkartError as exc:
         _fail(str(exc))
 
 
@@ -246,14 +244,12 @@ def _eval_exported(
         _fail(f"unknown backend {backend!r}; choose torch, nir-ref or lava-sim")
     with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
         if target.is_dir():
-            from snnkart.export.nir_export import ExportError, export_nir
-            from snnkart.rl.checkpoint import CheckpointError
-            from snnkart.rl.config import ConfigError
+            from snnkart.export.nir_export import export_nir
             from snnkart.rl.run import load_run
 
             try:
                 nir_file, _ = export_nir(load_run(target, checkpoint), Path(tmp) / "policy.nir")
-            except (ExportError, CheckpointError, ConfigError) as exc:
+            except SnnkartError as exc:
                 _fail(str(exc))
             default_out = target / f"eval-{backend}-{precision}"
         else:
@@ -276,14 +272,11 @@ def replay(
     every: Annotated[int, typer.Option(help="show every n-th time step")] = 2,
 ) -> None:
     """Replay the episodes recorded during training, several karts at once."""
-    from snnkart.replay import ReplayError
-    from snnkart.rl.checkpoint import CheckpointError
-    from snnkart.rl.config import ConfigError
     from snnkart.train_cli import run_replay
 
     try:
         run_replay(run_dir, mode, out, every)
-    except (ReplayError, ConfigError, CheckpointError, ValueError) as exc:
+    except SnnkartError as exc:
         _fail(str(exc))
 
 
@@ -299,15 +292,13 @@ def export(
     """Export a spiking policy to NIR, with a manifest of what NIR does not carry."""
     if not nir_format:
         _fail("choose an export format: --nir")
-    from snnkart.export.nir_export import ExportError, export_nir
-    from snnkart.rl.checkpoint import CheckpointError
-    from snnkart.rl.config import ConfigError
+    from snnkart.export.nir_export import export_nir
     from snnkart.rl.run import load_run
 
     try:
         run = load_run(run_dir, checkpoint)
         nir_path, manifest = export_nir(run, out or run_dir / "policy.nir")
-    except (ExportError, CheckpointError, ConfigError) as exc:
+    except SnnkartError as exc:
         _fail(str(exc))
     typer.echo(f"NIR graph written to {nir_path}\nmanifest written to {manifest}")
 
@@ -324,17 +315,12 @@ def _deploy_and_print(
 ) -> dict[str, object]:
     from rich.progress import Progress
 
-    from snnkart.backends.lava_sim import LavaBackendError
-    from snnkart.backends.network import UnsupportedGraphError
-    from snnkart.backends.reference import NIRFileError
     from snnkart.deploy import (
-        DeployError,
         DeployWriteError,
         ParityError,
         run_deploy,
         summary_lines,
     )
-    from snnkart.export.manifest import ManifestError
 
     try:
         with Progress(transient=True) as progress:
@@ -354,9 +340,7 @@ def _deploy_and_print(
         if out is not None and isinstance(exc, ParityError):
             typer.echo(f"results written to {out / 'deploy.json'}")
         _fail(str(exc), code=4 if isinstance(exc, ParityError) else 2)
-    except (
-        NIRFileError, ManifestError, DeployError, LavaBackendError, UnsupportedGraphError
-    ) as exc:  # fmt: skip
+    except SnnkartError as exc:
         _fail(str(exc))
     for line in summary_lines(record):
         typer.echo(line)

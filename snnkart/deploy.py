@@ -30,32 +30,13 @@ import numpy as np
 from snnkart import faults
 from snnkart.backends.reference import NIRReference, SpikeCounts, WindowResult
 from snnkart.envs.tracks import Track, track_label, track_sha256
+from snnkart.errors import DeployError, DeployWriteError, ParityError
 from snnkart.evaluate import EpisodeResult, EvalSummary, run_episodes
 from snnkart.export.manifest import Manifest, ManifestError
 from snnkart.io import atomic_path
 
 DEPLOY_SCHEMA = "snnkart/deploy/v1"
 BACKENDS = ("lava-sim", "nir-ref")
-
-
-class DeployError(ValueError):
-    """Bad deploy input: the message names the problem and what to do."""
-
-
-class ParityError(DeployError):
-    """The backend differed from its same-arithmetic reference; ``record`` holds the run."""
-
-    def __init__(self, message: str, record: dict[str, Any]) -> None:
-        super().__init__(message)
-        self.record = record
-
-
-class DeployWriteError(DeployError):
-    """The run finished but its record could not be written; ``record`` holds it."""
-
-    def __init__(self, message: str, record: dict[str, Any]) -> None:
-        super().__init__(message)
-        self.record = record
 
 
 def check_writable(out_dir: Path) -> None:

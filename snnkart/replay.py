@@ -15,11 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from snnkart.errors import ReplayError
+
 REPLAY_MODES = ("batch", "all")
-
-
-class ReplayError(ValueError):
-    pass
 
 
 @dataclass

@@ -12,6 +12,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, Ti
 from snnkart import faults
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.envs.tracks import track_label
+from snnkart.errors import UsageError
 from snnkart.rl.config import TrainConfig
 
 console = Console(stderr=True)
@@ -104,7 +105,7 @@ def run_eval(
     if video is not None:
         check_video_path(video)
         if render:
-            raise ValueError("choose either --render (a window) or --video (a file), not both")
+            raise UsageError("choose either --render (a window) or --video (a file), not both")
     run = load_run(run_dir, checkpoint)
     assert run.track is not None
     trained = embed_track(run.track, run.config.track)
@@ -179,7 +180,7 @@ def run_replay(run_dir: Path, mode: str, out: Path | None, every: int) -> None:
     from snnkart.video import check_video_path, video_writer
 
     if every < 1:
-        raise ValueError(f"--every must be >= 1, got {every}")
+        raise UsageError(f"--every must be >= 1, got {every}")
     if out is not None:
         check_video_path(out)
     cfg = read_run_config(run_dir)

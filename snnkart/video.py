@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from snnkart.errors import UsageError
 from snnkart.io import atomic_path
 
 VIDEO_SUFFIXES = (".gif", ".mp4")
@@ -14,7 +15,7 @@ VIDEO_SUFFIXES = (".gif", ".mp4")
 
 def check_video_path(path: Path) -> None:
     if path.suffix.lower() not in VIDEO_SUFFIXES:
-        raise ValueError(f"{path}: unsupported video format; use a .gif or .mp4 file name")
+        raise UsageError(f"{path}: unsupported video format; use a .gif or .mp4 file name")
 
 
 @contextlib.contextmanager

@@ -97,3 +97,27 @@ def test_demo_scripted_gif(tmp_path: Path) -> None:
     assert out.is_file() and out.stat().st_size > 0
     assert out.read_bytes()[:6] in (b"GIF87a", b"GIF89a")
     assert not list(tmp_path.glob(".tmp.gif*"))  # written atomically, no temp file left
+
+
+def test_user_errors_are_messages_and_bugs_are_tracebacks(monkeypatch, tmp_path: Path) -> None:
+    """A SnnkartError (bad input) prints ``error: ...`` and exits 2; anything else is a bug in
+    snnkart and must surface with its traceback, not be dressed up as a user error."""
+    from typer.testing import CliRunner
+
+    import snnkart.train_cli
+    from snnkart.cli import app
+    from snnkart.errors import RunError
+
+    def user_error(*args: object, **kwargs: object) -> int:
+        raise RunError("the run directory is in use")
+
+    monkeypatch.setattr(snnkart.train_cli, "run_training", user_error)
+    result = CliRunner().invoke(app, ["train", "--out", str(tmp_path / "a")])
+    assert result.exit_code == 2 and "error: the run directory is in use" in result.output
+
+    def bug(*args: object, **kwargs: object) -> int:
+        raise RuntimeError("an internal bug")
+
+    monkeypatch.setattr(snnkart.train_cli, "run_training", bug)
+    result = CliRunner().invoke(app, ["train", "--out", str(tmp_path / "b")])
+    assert isinstance(result.exception, RuntimeError) and "error:" not in result.output

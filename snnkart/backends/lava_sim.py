@@ -39,6 +39,7 @@ from snnkart.backends.host import HostCodec
 from snnkart.backends.lava_worker import HEADER, write_msg
 from snnkart.backends.quantize import FixedPointNetwork, quantize
 from snnkart.backends.reference import SpikeCounts, WindowResult, load_chain, split_window
+from snnkart.errors import BackendError
 from snnkart.faults import fault_point
 
 PRECISIONS = ("float", "fixed")
@@ -50,8 +51,8 @@ INTERRUPT_GRACE = 2.0
 """Seconds an exchange in flight may still take after Ctrl-C before the worker is killed."""
 
 
-class LavaBackendError(RuntimeError):
-    """Lava is unavailable, failed or hung; the message says which and what to do."""
+class LavaBackendError(BackendError):
+    """The Lava worker failed, died or timed out; the message says what it reported."""
 
 
 def lava_spec(chain: Any, num_steps: int, precision: str, fixed: FixedPointNetwork | None) -> dict:

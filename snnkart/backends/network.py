@@ -24,9 +24,7 @@ from typing import Any
 
 import numpy as np
 
-
-class UnsupportedGraphError(ValueError):
-    """The NIR graph uses a node type or a topology no snnkart backend runs."""
+from snnkart.errors import UnsupportedGraphError
 
 
 @dataclass(frozen=True)

@@ -44,13 +44,10 @@ from snnkart.backends.quantize import (
     check_lava_compatible,
     quantize,
 )
+from snnkart.errors import NIRFileError
 from snnkart.export.manifest import Manifest, ManifestError, manifest_path
 
 REFERENCE_MODES = ("float32", "float64", "fixed")
-
-
-class NIRFileError(ValueError):
-    """A NIR file is missing, unreadable or does not match its manifest."""
 
 
 @dataclass

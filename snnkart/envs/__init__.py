@@ -9,6 +9,8 @@ from typing import Any
 
 import gymnasium as gym
 
+from snnkart.errors import EnvError
+
 ENV_IDS: dict[str, str] = {
     "grid": "snnkart/Grid-v0",
     "gazebo": "snnkart/Gazebo-v0",
@@ -34,7 +36,7 @@ def resolve_env_name(name: str) -> str:
     """Map any accepted spelling (``steer``, ``steer_env``, ``snnkart/Steer-v0``) to ``steer``."""
     key = name if name in ENV_ALIASES else name.lower()
     if key not in ENV_ALIASES:
-        raise ValueError(
+        raise EnvError(
             f"unknown env {name!r}; choose one of {', '.join(ENV_IDS)} "
             f"(also accepted: {', '.join(f'{n}_env' for n in ENV_IDS)}, {', '.join(ENV_IDS.values())})"
         )

@@ -28,6 +28,7 @@ from snnkart.envs.constants import (
 from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.tracks import Track, load_track
+from snnkart.errors import EnvError
 from snnkart.faults import fault_point
 
 _KART, _WALL, _CHECKPOINT = 1, 2, 3
@@ -119,11 +120,11 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         render_mode: str | None = None,
     ) -> None:
         if action_mode not in ACTION_MODES:
-            raise ValueError(
+            raise EnvError(
                 f"unknown action_mode {action_mode!r}; choose one of {', '.join(ACTION_MODES)}"
             )
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
+            raise EnvError(
                 f"unknown render_mode {render_mode!r}; choose one of "
                 f"{', '.join(self.metadata['render_modes'])} or None"
             )

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
+from snnkart.errors import TrackError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -48,10 +49,6 @@ else:  # pragma: no cover - exercised on 3.10
 
 TRACK_SCHEMA = "snnkart/track/v1"
 BUILTIN_TRACKS = ("big_S", "small_S")
-
-
-class TrackError(ValueError):
-    """A track file is missing or invalid; the message names the file, the entry and the fix."""
 
 
 @dataclass(frozen=True)

@@ -15,16 +15,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from snnkart.errors import ManifestError
 from snnkart.io import atomic_path
 
 MANIFEST_SCHEMA = "snnkart/manifest/v2"
 """v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests still
 load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
 READABLE_SCHEMAS = ("snnkart/manifest/v1", MANIFEST_SCHEMA)
-
-
-class ManifestError(ValueError):
-    """A manifest is missing, malformed or inconsistent with its NIR graph."""
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ import numpy as np
 import torch
 
 from snnkart.backends.host import RATE_RNG
+from snnkart.errors import ExportError
 from snnkart.export.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import spec_hash, versions
@@ -25,10 +26,6 @@ from snnkart.rl.run import LoadedRun
 
 NIR_DT = 1e-4
 """snntorch's export convention: tau = NIR_DT / (1 - beta), r = tau / NIR_DT."""
-
-
-class ExportError(ValueError):
-    """The policy cannot be exported for the Lava target; the message says why."""
 
 
 def _leaky(size: int, beta: float, threshold: float) -> torch.nn.Module:

@@ -20,14 +20,11 @@ import numpy as np
 import torch
 
 from snnkart.envs.base import ENV_REVISION, KartEnv, revision_mismatch
+from snnkart.errors import CheckpointError, CheckpointWriteError
 from snnkart.faults import fault_point
 from snnkart.io import atomic_path
 
 CHECKPOINT_SCHEMA = "snnkart/checkpoint/v1"
-
-
-class CheckpointError(ValueError):
-    """A checkpoint is missing, corrupt or does not fit the env it is used with."""
 
 
 def env_spec(env: KartEnv) -> dict[str, Any]:
@@ -108,11 +105,6 @@ class RunningMeanStd:
     @classmethod
     def from_state(cls, state: dict[str, torch.Tensor]) -> RunningMeanStd:
         return cls(state["mean"].numpy().copy(), state["var"].numpy().copy(), float(state["count"]))
-
-
-class CheckpointWriteError(CheckpointError):
-    """A checkpoint could not be written (disk full, read-only, ...); the previous one is
-    intact (files are replaced atomically)."""
 
 
 def save_checkpoint(path: Path, state: dict[str, Any], meta: dict[str, Any]) -> None:

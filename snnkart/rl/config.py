@@ -14,6 +14,7 @@ import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from snnkart.envs import resolve_env_name
+from snnkart.errors import ConfigError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -21,10 +22,6 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 CONFIG_SCHEMA = "snnkart/train-config/v1"
-
-
-class ConfigError(ValueError):
-    """A training config is invalid; the message names the key and the fix."""
 
 
 class _Section(BaseModel):

@@ -37,6 +37,7 @@ from snnkart import faults
 from snnkart.envs import ENV_IDS
 from snnkart.envs.base import KartEnv
 from snnkart.envs.tracks import Track, embed_track, embedded_track, load_track
+from snnkart.errors import RunError
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import (
     RunningMeanStd,
@@ -48,10 +49,6 @@ from snnkart.rl.checkpoint import (
 )
 from snnkart.rl.config import PPOConfig, TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, build_policy
-
-
-class RunError(RuntimeError):
-    """A run directory cannot be used as asked (exists already, nothing to resume, ...)."""
 
 
 def compute_gae(

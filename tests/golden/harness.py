@@ -31,9 +31,20 @@ RTOL = 1e-6
 
 # Values that are measurements of this machine or paths of this run, not outputs.
 VOLATILE = {
-    "charts/SPS", "charts/rollout_SPS", "charts/update_seconds", "timing", "machine",
-    "versions", "nir_file", "run", "checkpoint", "date", "created", "wall_s", "startup_s",
-}  # fmt: skip
+    "charts/SPS",
+    "charts/rollout_SPS",
+    "charts/update_seconds",
+    "timing",
+    "machine",
+    "versions",
+    "nir_file",
+    "run",
+    "checkpoint",
+    "date",
+    "created",
+    "wall_s",
+    "startup_s",
+}
 
 
 def _invoke(args: list[str]) -> None:
@@ -43,7 +54,9 @@ def _invoke(args: list[str]) -> None:
 
     result = CliRunner().invoke(app, args)
     if result.exit_code != 0:
-        raise AssertionError(f"snnkart {' '.join(args)} exited {result.exit_code}:\n{result.output}")
+        raise AssertionError(
+            f"snnkart {' '.join(args)} exited {result.exit_code}:\n{result.output}"
+        )
 
 
 def _strip(obj: Any) -> Any:
@@ -74,8 +87,9 @@ def _train_and_eval(tmp: Path) -> dict[str, Any]:
         evaluation = json.loads((run_dir / "eval.json").read_text())
         out[kind] = {
             "metrics": _strip(rows),
-            "progress": {k: meta[k] for k in ("global_step", "episodes", "finishes",
-                                              "first_finish_step")},  # fmt: skip
+            "progress": {
+                k: meta[k] for k in ("global_step", "episodes", "finishes", "first_finish_step")
+            },
             "eval": _strip({"summary": evaluation["summary"], "episodes": evaluation["episodes"]}),
             "actions": _torch_actions(run_dir, steps=120),
         }
@@ -127,16 +141,36 @@ def _export(tmp: Path) -> tuple[Path, dict[str, Any]]:
 def _deploy(tmp: Path, nir_path: Path) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for backend, precision, episodes in (
-        ("nir-ref", "float32", 2), ("nir-ref", "float64", 1), ("nir-ref", "fixed", 2),
-        ("lava-sim", "float", 1), ("lava-sim", "fixed", 1),
-    ):  # fmt: skip
+        ("nir-ref", "float32", 2),
+        ("nir-ref", "float64", 1),
+        ("nir-ref", "fixed", 2),
+        ("lava-sim", "float", 1),
+        ("lava-sim", "fixed", 1),
+    ):
         target = tmp / f"deploy-{backend}-{precision}"
-        _invoke(["deploy", str(nir_path), "--backend", backend, "--precision", precision,
-                 "--episodes", str(episodes), "--seed", "700", "--out", str(target)])  # fmt: skip
+        _invoke(
+            [
+                "deploy",
+                str(nir_path),
+                "--backend",
+                backend,
+                "--precision",
+                precision,
+                "--episodes",
+                str(episodes),
+                "--seed",
+                "700",
+                "--out",
+                str(target),
+            ]
+        )
         record = json.loads((target / "deploy.json").read_text())
         out[f"{backend} {precision}"] = _strip(
-            {k: record[k] for k in ("summary", "counts", "parity", "quantization", "episodes")
-             if k in record}  # fmt: skip
+            {
+                k: record[k]
+                for k in ("summary", "counts", "parity", "quantization", "episodes")
+                if k in record
+            }
         )
     out["rasters"] = _rasters(nir_path, steps=60)
     return out
@@ -162,10 +196,13 @@ def _rasters(nir_path: Path, steps: int) -> dict[str, Any]:
     finally:
         env.close()
     out = {}
-    predictors = {f"nir-ref {m}": lambda m=m: NIRReference(nir_path, m) for m in
-                  ("float32", "float64", "fixed")}  # fmt: skip
-    predictors |= {f"lava-sim {p}": lambda p=p: LavaSimPredictor(nir_path, p) for p in
-                   ("float", "fixed")}  # fmt: skip
+    predictors = {
+        f"nir-ref {m}": lambda m=m: NIRReference(nir_path, m)
+        for m in ("float32", "float64", "fixed")
+    }
+    predictors |= {
+        f"lava-sim {p}": lambda p=p: LavaSimPredictor(nir_path, p) for p in ("float", "fixed")
+    }
     for name, make in predictors.items():
         predictor = make()
         rasters, readouts, actions = [], [], []
