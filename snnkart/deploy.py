@@ -29,10 +29,10 @@ import numpy as np
 
 from snnkart import faults
 from snnkart.backends.reference import NIRReference, SpikeCounts, WindowResult
+from snnkart.contract.manifest import Manifest, ManifestError
 from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.errors import DeployError, DeployWriteError, ParityError
 from snnkart.evaluate import EpisodeResult, EvalSummary, run_episodes
-from snnkart.export.manifest import Manifest, ManifestError
 from snnkart.io import atomic_path
 
 DEPLOY_SCHEMA = "snnkart/deploy/v1"

@@ -44,8 +44,8 @@ from snnkart.backends.reference import (
     split_window,
 )
 from snnkart.cli import app
+from snnkart.contract.manifest import manifest_path
 from snnkart.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
-from snnkart.export.manifest import manifest_path
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.ppo import make_env, normalize_obs

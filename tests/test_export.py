@@ -23,7 +23,7 @@ from typer.testing import CliRunner
 
 from snnkart.backends.reference import NIRFileError, NIRReference
 from snnkart.cli import app
-from snnkart.export.manifest import MANIFEST_SCHEMA, Manifest, ManifestError, manifest_path
+from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, ManifestError, manifest_path
 from snnkart.export.nir_export import NIR_DT, ExportError, check_exportable, export_nir
 from snnkart.rl.checkpoint import spec_hash
 from snnkart.rl.policies import SNNPolicy
@@ -476,3 +476,25 @@ def test_manifest_is_mirrored_into_the_nir_metadata(exported: dict[str, Path]) -
     graph = nir.read(exported["grid"])
     mirrored = Manifest.from_json(str(graph.metadata["snnkart_manifest"]), "metadata")
     assert mirrored == Manifest.read(manifest_path(exported["grid"]))
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"encoding": "burst"}, "unknown encoding"),
+        ({"action_mode": "joystick"}, "unknown action_mode"),
+        ({"num_steps": 0}, "num_steps"),
+        ({"obs_std": (1.0,)}, "differ in length"),
+        ({"schema": "snnkart/manifest/v9"}, "schema"),
+        ({"track": None}, "embeds its track"),
+    ],
+)
+def test_manifest_is_validated_on_construction(
+    exported: dict[str, Path], change: dict, message: str
+) -> None:
+    """However a manifest is made (read, exported, or built in code), it is valid or refused."""
+    import dataclasses
+
+    manifest = Manifest.read(manifest_path(exported["steer"]))
+    with pytest.raises(ManifestError, match=message):
+        dataclasses.replace(manifest, **change)

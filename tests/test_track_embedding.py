@@ -19,8 +19,8 @@ from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
 from snnkart.cli import app
+from snnkart.contract.manifest import manifest_path
 from snnkart.envs.tracks import embed_track, embedded_track, load_track, parse_track, track_sha256
-from snnkart.export.manifest import manifest_path
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from snnkart.rl.run import load_run

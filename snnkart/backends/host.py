@@ -1,19 +1,13 @@
-"""The host side of a deployed policy: observation -> input current, spike counts -> action.
+"""The host side of a deployed policy on a backend: observation -> the first layer's input
+current, spike counts -> action.
 
 Every backend (the numpy reference in each arithmetic, Lava float and Lava fixed) shares this
-code, so the host never causes a difference between them; only the spiking layers differ.
-
-- Normalisation: ``z = clip((obs - mean) / std, +-clip)`` in float64, cast to float32, with
-  the statistics frozen in the manifest (as the torch policy at evaluation).
-- Encoding: ``current``: the first layer's input current ``c = W1 z + b1``, computed once per
-  env step and held for the T SNN steps. ``rate``: Bernoulli input spikes
-  ``x[t] = u[t] < p`` with ``p = clip((obs - low) / (high - low), 0, 1)`` (float32) and
-  ``u = rng.random((T, n_in))`` from ``numpy.random.Generator(PCG64(seed))``, seeded once per
-  predictor with its seed and drawn once per env step; then ``c[t] = W1 x[t] + b1``.
-  The arithmetic of ``c`` follows the backend: float32 (torch order), float64 (Lava float) or
-  the quantised integer current (Lava fixed point).
-- Readout: ``out = W_r (n / T) + b_r`` in float32 from the last layer's spike counts ``n``;
-  discrete actions take the argmax, continuous ones are clipped to [-1, 1].
+code, so the host never causes a difference between them; only the spiking layers differ. The
+normalisation, rate encoding, readout and decoding are the contract's
+(:mod:`snnkart.contract.encoding`); what is added here is the first layer's input current
+``c = W1 z + b1`` (current encoding: computed once per env step and held for the T SNN steps;
+rate encoding: ``c[t] = W1 x[t] + b1``) in the backend's arithmetic: float32 (torch order),
+float64 (Lava float) or the quantised integer current (Lava fixed point).
 """
 
 from __future__ import annotations
@@ -24,25 +18,8 @@ import numpy as np
 
 from snnkart.backends.network import ChainNetwork
 from snnkart.backends.quantize import FixedPointNetwork
-from snnkart.export.manifest import Manifest
-
-RATE_RNG = (
-    "rng = numpy.random.Generator(numpy.random.PCG64(seed)), seed = the predictor's seed "
-    "(eval/deploy --seed), created once; per env step u = rng.random((T, n_in)) and "
-    "x[t] = u[t] < clip((obs - obs_low) / (obs_high - obs_low), 0, 1) in float32"
-)
-
-
-def rate_probabilities(obs: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """Spike probabilities of the rate encoding (float32, as the torch policy computes them)."""
-    raw = np.asarray(obs, dtype=np.float32)
-    p = (raw - low.astype(np.float32)) / (high.astype(np.float32) - low.astype(np.float32))
-    return np.clip(p, 0.0, 1.0)
-
-
-def rate_spikes(rng: np.random.Generator, p: np.ndarray, num_steps: int) -> np.ndarray:
-    """Input spike trains ``[T, n_in]`` (float32 0/1) for probabilities ``p``."""
-    return (rng.random((num_steps, p.shape[-1])) < p).astype(np.float32)
+from snnkart.contract import encoding
+from snnkart.contract.manifest import Manifest
 
 
 class HostCodec:
@@ -74,17 +51,17 @@ class HostCodec:
         self.w64, self.b64 = first.weight.astype(np.float64), first.bias.astype(np.float64)
         self.readout_w = chain.readout_weight
         self.readout_b = chain.readout_bias
-        self.rng = np.random.Generator(np.random.PCG64(seed))
+        self.rng = encoding.rate_generator(seed)
         self.last_input_spikes: np.ndarray | None = None
 
     def normalise(self, obs: np.ndarray) -> np.ndarray:
-        z = (np.asarray(obs, dtype=np.float64) - self.mean) / self.std
-        return np.clip(z, -self.manifest.obs_clip, self.manifest.obs_clip).astype(np.float32)
+        return encoding.normalise(obs, self.mean, self.std, self.manifest.obs_clip)
 
     def _input(self, obs: np.ndarray) -> np.ndarray:
         """The first layer's input: ``[n_in]`` (current encoding) or ``[T, n_in]`` spikes."""
         if self.manifest.encoding == "rate":
-            spikes = rate_spikes(self.rng, rate_probabilities(obs, self.low, self.high), self.T)
+            p = encoding.rate_probabilities(obs, self.low, self.high)
+            spikes = encoding.rate_spikes(self.rng, p, self.T)
             self.last_input_spikes = spikes
             return spikes
         z = self.normalise(obs)
@@ -109,12 +86,7 @@ class HostCodec:
 
     def readout(self, last_counts: np.ndarray) -> np.ndarray:
         """The readout vector (logits or action means) from the last layer's spike counts."""
-        rates = np.asarray(last_counts, dtype=np.float32) / np.float32(self.T)
-        if self.readout_w is None or self.readout_b is None:
-            return rates
-        return self.readout_w @ rates + self.readout_b
+        return encoding.readout(last_counts, self.T, self.readout_w, self.readout_b)
 
     def decode(self, out: np.ndarray) -> Any:
-        if self.manifest.action_mode == "discrete":
-            return int(np.argmax(out))
-        return np.clip(out, -1.0, 1.0).astype(np.float32)
+        return encoding.decode(out, self.manifest.action_mode)

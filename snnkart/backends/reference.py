@@ -44,8 +44,8 @@ from snnkart.backends.quantize import (
     check_lava_compatible,
     quantize,
 )
+from snnkart.contract.manifest import Manifest, ManifestError, manifest_path
 from snnkart.errors import NIRFileError
-from snnkart.export.manifest import Manifest, ManifestError, manifest_path
 
 REFERENCE_MODES = ("float32", "float64", "fixed")
 

@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from snnkart.backends.host import RATE_RNG
+from snnkart.contract.encoding import RATE_RNG, obs_std
+from snnkart.contract.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
 from snnkart.errors import ExportError
-from snnkart.export.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import spec_hash, versions
 from snnkart.rl.policies import SNNPolicy
@@ -114,7 +114,7 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
         ),
         encoding=cfg.snn.encoding,
         obs_mean=tuple(float(x) for x in rms.mean),
-        obs_std=tuple(float(x) for x in np.sqrt(rms.var + 1e-8)),
+        obs_std=tuple(float(x) for x in obs_std(rms.var)),
         obs_clip=cfg.ppo.clip_obs,
         obs_low=tuple(float(x) for x in policy.obs_low),
         obs_high=tuple(float(x) for x in (policy.obs_low + policy.obs_span)),

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from snnkart.contract import encoding
 from snnkart.envs.base import ENV_REVISION, KartEnv, revision_mismatch
 from snnkart.errors import CheckpointError, CheckpointWriteError
 from snnkart.faults import fault_point
@@ -92,8 +93,7 @@ class RunningMeanStd:
         self.count = total
 
     def normalize(self, obs: np.ndarray, clip: float) -> np.ndarray:
-        out = (obs - self.mean) / np.sqrt(self.var + 1e-8)
-        return np.clip(out, -clip, clip).astype(np.float32)
+        return encoding.normalise(obs, self.mean, encoding.obs_std(self.var), clip)
 
     def state(self) -> dict[str, torch.Tensor]:
         return {

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from snnkart.backends.host import rate_probabilities, rate_spikes
+from snnkart.contract.encoding import rate_generator, rate_probabilities, rate_spikes
 from snnkart.envs.tracks import Track, TrackError, embed_track
 from snnkart.rl.checkpoint import (
     CheckpointError,
@@ -78,7 +78,7 @@ class TorchPredictor:
         self.policy = run.policy
         self.seed = seed
         self.generator = torch.Generator().manual_seed(seed)
-        self.rng = np.random.Generator(np.random.PCG64(seed))
+        self.rng = rate_generator(seed)
         self.discrete = run.policy.discrete
 
     def reset(self) -> None:
@@ -89,7 +89,7 @@ class TorchPredictor:
         norm = normalize_obs(self.run.obs_rms, self.run.config.ppo, raw)
         spikes = None
         if isinstance(self.policy, SNNPolicy) and self.policy.cfg.encoding == "rate":
-            # The deployment contract (snnkart.backends.host): numpy PCG64 seeded once per
+            # The deployment contract (snnkart.contract.encoding): numpy PCG64 seeded once per
             # predictor, one [T, n_in] draw per env step, so every backend sees these spikes.
             low = self.policy.obs_low.numpy()
             p = rate_probabilities(raw[0], low, low + self.policy.obs_span.numpy())

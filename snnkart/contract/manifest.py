@@ -22,6 +22,8 @@ MANIFEST_SCHEMA = "snnkart/manifest/v2"
 """v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests still
 load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
 READABLE_SCHEMAS = ("snnkart/manifest/v1", MANIFEST_SCHEMA)
+ENCODINGS = ("current", "rate")
+ACTION_MODES = ("discrete", "continuous")
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,28 @@ class Manifest:
     encoding_rng: str | None = None  # rate encoding: how every backend draws the input spikes
     track: dict[str, str] | None = None  # the trained track (v2; None in v1 manifests)
 
+    def __post_init__(self) -> None:
+        """A manifest is valid from construction on, however it was made."""
+        if self.schema not in READABLE_SCHEMAS:
+            raise ManifestError(
+                f"schema {self.schema!r} is not one of {', '.join(map(repr, READABLE_SCHEMAS))}"
+            )
+        if self.schema == MANIFEST_SCHEMA and not isinstance(self.track, dict):
+            raise ManifestError(f"a {MANIFEST_SCHEMA} manifest embeds its track")
+        if self.encoding not in ENCODINGS:
+            raise ManifestError(f"unknown encoding {self.encoding!r}; choose one of {ENCODINGS}")
+        if self.action_mode not in ACTION_MODES:
+            raise ManifestError(
+                f"unknown action_mode {self.action_mode!r}; choose one of {ACTION_MODES}"
+            )
+        if self.num_steps < 1 or not self.layers:
+            raise ManifestError("a manifest needs num_steps >= 1 and at least one layer")
+        dims = {len(getattr(self, k)) for k in ("obs_mean", "obs_std", "obs_low", "obs_high")}
+        if len(dims) != 1:
+            raise ManifestError("obs_mean, obs_std, obs_low and obs_high differ in length")
+        if any(s <= 0 for s in self.obs_std):
+            raise ManifestError("obs_std must be positive (it divides the observation)")
+
     @property
     def obs_dim(self) -> int:
         return len(self.obs_mean)
@@ -77,14 +101,11 @@ class Manifest:
             data["layers"] = tuple(LayerSpec(**layer) for layer in data["layers"])
             for key in ("obs_mean", "obs_std", "obs_low", "obs_high"):
                 data[key] = tuple(float(x) for x in data[key])
-            manifest = cls(**data)
+            return cls(**data)
         except (KeyError, TypeError) as exc:
             raise ManifestError(f"{source}: malformed manifest ({exc})") from exc
-        if manifest.schema == MANIFEST_SCHEMA and not isinstance(manifest.track, dict):
-            raise ManifestError(f"{source}: a {MANIFEST_SCHEMA} manifest embeds its track")
-        if manifest.encoding not in ("current", "rate"):
-            raise ManifestError(f"{source}: unknown encoding {manifest.encoding!r}")
-        return manifest
+        except ManifestError as exc:
+            raise ManifestError(f"{source}: {exc}") from None
 
     def write(self, path: Path) -> None:
         with atomic_path(path) as tmp:
