@@ -30,13 +30,13 @@ from snnkart.backends.lava_sim import LavaSimPredictor
 from snnkart.backends.reference import NIRReference
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.config import load_config
-from snnkart.rl.ppo import Trainer, make_env
+from snnkart.rl.ppo import Trainer
 from snnkart.rl.run import TorchPredictor, load_run
 
 
 def record_observations(run: Any, steps: int, seed: int = 0) -> list[np.ndarray]:
     """Observations of a closed-loop run of the torch policy (episodes back to back)."""
-    env = make_env(run.config, track=run.track)
+    env = run.config.make_env(track=run.track)
     predictor = TorchPredictor(run, seed=seed)
     obs_list: list[np.ndarray] = []
     try:

@@ -86,7 +86,6 @@ def _run(out: Path, steps: int, lava_episodes: int, episodes: int) -> dict[str, 
     from snnkart.backends.reference import NIRReference
     from snnkart.cli import _deploy_and_print
     from snnkart.export.nir_export import export_nir
-    from snnkart.rl.ppo import make_env
     from snnkart.rl.run import TorchPredictor, load_run
 
     out.mkdir(parents=True, exist_ok=True)
@@ -101,7 +100,7 @@ def _run(out: Path, steps: int, lava_episodes: int, episodes: int) -> dict[str, 
     console.print(f"      {nir_path}\n      {manifest_file}")
 
     console.print(f"[3/4] torch policy vs its fixed-point twin on the same {episodes} episodes")
-    env = make_env(run.config, track=run.track)
+    env = run.config.make_env(track=run.track)
     try:
         torch_summary = _score(TorchPredictor(run, seed=EVAL_SEED), env, "torch", episodes)
         fixed_summary = _score(

@@ -98,7 +98,6 @@ def run_eval(
 ) -> None:
     from snnkart.envs.tracks import embed_track, load_track, track_sha256
     from snnkart.evaluate import EvalSummary, run_episodes, write_eval
-    from snnkart.rl.ppo import make_env
     from snnkart.rl.run import TorchPredictor, load_run
     from snnkart.video import check_video_path, video_writer
 
@@ -116,7 +115,7 @@ def run_eval(
     override = track_sha256(chosen) != trained["sha256"]
     label = track_label(chosen.name, given)
     mode = "human" if render else ("rgb_array" if video is not None else None)
-    env = make_env(run.config, render_mode=mode, track=chosen)
+    env = run.config.make_env(render_mode=mode, track=chosen)
     predictor = TorchPredictor(run, seed=seed)
     with contextlib.ExitStack() as stack:
         stack.callback(env.close)
@@ -176,7 +175,7 @@ def run_replay(run_dir: Path, mode: str, out: Path | None, every: int) -> None:
     from snnkart.replay import frames, load_ghosts
     from snnkart.rl.checkpoint import load_checkpoint
     from snnkart.rl.config import read_run_config
-    from snnkart.rl.ppo import checkpoint_track, make_env
+    from snnkart.rl.ppo import checkpoint_track
     from snnkart.video import check_video_path, video_writer
 
     if every < 1:
@@ -187,7 +186,7 @@ def run_replay(run_dir: Path, mode: str, out: Path | None, every: int) -> None:
     ghosts = load_ghosts(run_dir)
     latest = run_dir / "checkpoint.pt"  # carries the track, which may have moved since
     track = checkpoint_track(load_checkpoint(latest)[1], cfg, latest) if latest.is_file() else None
-    env = make_env(cfg, track=track).unwrapped
+    env = cfg.make_env(track=track).unwrapped
     renderer = Renderer(env, human=out is None)  # type: ignore[arg-type]
     try:
         if out is None:

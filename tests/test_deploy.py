@@ -48,7 +48,7 @@ from snnkart.contract.manifest import manifest_path
 from snnkart.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
-from snnkart.rl.ppo import make_env, normalize_obs
+from snnkart.rl.ppo import normalize_obs
 from snnkart.rl.run import LoadedRun, TorchPredictor, load_run
 
 RUNS = {
@@ -240,7 +240,7 @@ def _record_torch(run: LoadedRun, steps: int) -> list[tuple[np.ndarray, Any, np.
     policy = run.policy
     assert isinstance(policy, SNNPolicy)
     predictor = TorchPredictor(run)
-    env = make_env(run.config)
+    env = run.config.make_env()
     records: list[tuple[np.ndarray, Any, np.ndarray]] = []
     try:
         episode = 0
@@ -986,7 +986,7 @@ def test_cli_eval_run_dir_on_the_reference(
     run = load_run(runs["steer"])
     predictor = TorchPredictor(run)
     reference = NIRReference(exported, "float32")
-    env = make_env(run.config)
+    env = run.config.make_env()
     agree = total = 0
     try:
         obs, _ = env.reset(seed=10_000)

@@ -24,10 +24,9 @@ from typer.testing import CliRunner
 from snnkart.backends.reference import NIRFileError, NIRReference
 from snnkart.cli import app
 from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, ManifestError, manifest_path
+from snnkart.envs.spec import spec_hash
 from snnkart.export.nir_export import NIR_DT, ExportError, check_exportable, export_nir
-from snnkart.rl.checkpoint import spec_hash
 from snnkart.rl.policies import SNNPolicy
-from snnkart.rl.ppo import make_env
 from snnkart.rl.run import LoadedRun, TorchPredictor, load_run
 
 RUNS = {
@@ -202,7 +201,7 @@ def _closed_loop(
         lambda module, args, out: captured.append(out.detach().clone())
     )
     torch_pred = TorchPredictor(run)
-    env = make_env(run.config)
+    env = run.config.make_env()
     steps = mismatches = readout_mismatches = 0
     max_diff = 0.0
     try:
@@ -268,7 +267,7 @@ def test_reference_readout_matches_torch_on_single_observations(
 ) -> None:
     run = load_run(runs["steer-continuous"])
     reference = NIRReference(exported["steer-continuous"])
-    env = make_env(run.config)
+    env = run.config.make_env()
     try:
         obs, _ = env.reset(seed=3)
     finally:
@@ -452,7 +451,7 @@ def test_rate_encoding_draws_the_same_spikes_in_torch_and_the_reference(tmp_path
     torch_pred = TorchPredictor(run, seed=5)
     reference = NIRReference(nir_path, "float32", seed=5)
     other_seed = NIRReference(nir_path, "float32", seed=6)
-    env = make_env(run.config)
+    env = run.config.make_env()
     same = differs_with_other_seed = 0
     try:
         obs, _ = env.reset(seed=0)

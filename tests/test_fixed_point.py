@@ -32,7 +32,7 @@ from tiny_runs import train_tiny
 from snnkart.backends.quantize import ACT_SHIFT, DECAY_UNITY, HOST_CURRENT_MAX, quantize
 from snnkart.backends.reference import NIRReference, load_chain
 from snnkart.export.nir_export import export_nir
-from snnkart.rl.ppo import make_env, normalize_obs
+from snnkart.rl.ppo import normalize_obs
 from snnkart.rl.run import LoadedRun, load_run
 
 OBSERVATIONS = 300
@@ -44,7 +44,7 @@ def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[LoadedRun, Path, 
     base = tmp_path_factory.mktemp("fixed")
     run = load_run(train_tiny(base / "run", "steer", "snn"))
     nir_path, _ = export_nir(run, base / "policy.nir")
-    env = make_env(run.config, track=run.track)
+    env = run.config.make_env(track=run.track)
     rng = np.random.default_rng(0)
     observations = []
     obs, _ = env.reset(seed=0)
@@ -174,7 +174,7 @@ def test_fixed_point_drives_like_the_trained_policy(tmp_path: Path) -> None:
 
     run = load_run(FIXTURE)
     nir_path, _ = export_nir(run, tmp_path / "policy.nir")
-    env = make_env(run.config, track=run.track)
+    env = run.config.make_env(track=run.track)
     try:
         by_torch = _Shadowed(TorchPredictor(run, seed=FIRST_SEED), NIRReference(nir_path, "fixed"))
         torch_runs = run_episodes(env, by_torch, EPISODES, FIRST_SEED)

@@ -25,17 +25,16 @@ from typer.testing import CliRunner
 
 from snnkart.cli import app
 from snnkart.envs.base import ENV_REVISION
+from snnkart.envs.spec import env_spec, spec_hash
 from snnkart.evaluate import EVAL_SCHEMA, EvalSummary, run_episodes
 from snnkart.rl.checkpoint import (
     CHECKPOINT_SCHEMA,
     CheckpointError,
-    env_spec,
     load_checkpoint,
     save_checkpoint,
-    spec_hash,
 )
 from snnkart.rl.config import ConfigError, TrainConfig, load_config
-from snnkart.rl.ppo import RunError, Trainer, make_env
+from snnkart.rl.ppo import RunError, Trainer
 from snnkart.rl.run import TorchPredictor, load_run
 
 if sys.version_info >= (3, 11):
@@ -172,7 +171,7 @@ def test_tiny_training_run(tmp_path: Path, env: str, policy: str, extra: list[st
 
 
 def _observations(cfg: TrainConfig, n: int = 40) -> np.ndarray:
-    env = make_env(cfg)
+    env = cfg.make_env()
     rng = np.random.default_rng(5)
     env.action_space.seed(5)
     obs, _ = env.reset(seed=123)
@@ -235,7 +234,7 @@ def test_checkpoint_metadata_and_weights_only_load(
     for pkg in ("python", "snnkart", "torch", "snntorch", "gymnasium", "numpy"):
         assert meta["versions"][pkg], pkg
     assert meta["versions"]["torch"] == importlib_metadata.version("torch")
-    env = make_env(trainer.cfg)
+    env = trainer.cfg.make_env()
     try:
         assert meta["env_spec_hash"] == spec_hash(env_spec(env.unwrapped))  # type: ignore[arg-type]
     finally:
@@ -496,7 +495,7 @@ def test_run_episodes_summary_is_consistent(
     trained: dict[str, tuple[Path, Trainer]], policy: str
 ) -> None:
     run = load_run(trained[policy][0])
-    env = make_env(run.config)
+    env = run.config.make_env()
     try:
         results = run_episodes(env, TorchPredictor(run, seed=3), episodes=3, seed=100)
     finally:
@@ -624,7 +623,7 @@ def test_grid_policy_learns_to_drive(learned: dict[str, Path], policy: str) -> N
     assert run.config.seed == 1 and run.meta["global_step"] >= LEARNING[policy]
     first_finish = run.meta["first_finish_step"]
     assert first_finish > 0, run.meta
-    env = make_env(run.config, track=run.track)
+    env = run.config.make_env(track=run.track)
     try:
         results = run_episodes(env, TorchPredictor(run, seed=10_000), 20, 10_000)
     finally:

@@ -18,9 +18,10 @@ import torch
 
 from snnkart.contract.encoding import RATE_RNG, obs_std
 from snnkart.contract.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
+from snnkart.envs.spec import spec_hash
 from snnkart.errors import ExportError
 from snnkart.io import atomic_path
-from snnkart.rl.checkpoint import spec_hash, versions
+from snnkart.rl.checkpoint import versions
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.run import LoadedRun
 

@@ -7,7 +7,6 @@ silently with another env. Files are written atomically.
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import platform
@@ -20,45 +19,13 @@ import numpy as np
 import torch
 
 from snnkart.contract import encoding
-from snnkart.envs.base import ENV_REVISION, KartEnv, revision_mismatch
+from snnkart.envs.base import KartEnv, revision_mismatch
+from snnkart.envs.spec import env_spec, spec_differences, spec_hash
 from snnkart.errors import CheckpointError, CheckpointWriteError
 from snnkart.faults import fault_point
 from snnkart.io import atomic_path
 
 CHECKPOINT_SCHEMA = "snnkart/checkpoint/v1"
-
-
-def env_spec(env: KartEnv) -> dict[str, Any]:
-    """Everything about an env that a trained policy depends on."""
-    track_text = env.track.to_toml()
-    return {
-        "revision": ENV_REVISION,
-        "env": env.env_name,
-        "track": env.track.name,
-        "track_sha256": hashlib.sha256(track_text.encode()).hexdigest(),
-        "action_mode": env.action_mode,
-        "action_space": str(env.action_space),
-        "observation_layout": [[f.name, f.size, f.low, f.high] for f in env.observation_layout],
-        "obs_dim": int(env.observation_space.low.shape[0]),
-        "env_config": _env_config(env),
-    }
-
-
-_ADDED_UNSET = ("route_clearance_m",)
-"""Env config fields added after revision 3 began; left out of the spec while unset (None),
-so runs made before they existed still match."""
-
-
-def _env_config(env: KartEnv) -> dict[str, Any]:
-    data = env.config.model_dump(mode="json")
-    for key in _ADDED_UNSET:
-        if data.get(key) is None:
-            data.pop(key, None)
-    return data
-
-
-def spec_hash(spec: dict[str, Any]) -> str:
-    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def versions() -> dict[str, str]:
@@ -166,24 +133,14 @@ def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
 
 def check_compatible(meta: dict[str, Any], env: KartEnv, source: str) -> None:
     """Raise a clear error if the checkpoint was trained on a different env spec."""
-    spec = env_spec(env)
-    saved = meta.get("env_spec", {})
-    if meta.get("env_spec_hash") == spec_hash(spec):
+    if meta.get("env_spec_hash") == spec_hash(env_spec(env)):
         return
-    diffs = []
-    mismatch = revision_mismatch(saved.get("revision"))
-    if mismatch:
-        raise CheckpointError(f"{source} was trained on {mismatch}; retrain the run")
-    if saved.get("obs_dim") != spec["obs_dim"]:
-        diffs.append(f"observation size {saved.get('obs_dim')} vs {spec['obs_dim']}")
-    for key in ("env", "track", "track_sha256", "action_mode", "action_space",
-                "observation_layout", "env_config"):  # fmt: skip
-        if saved.get(key) != spec[key]:
-            diffs.append(
-                "track geometry differs"
-                if key == "track_sha256"
-                else f"{key}: {saved.get(key)!r} vs {spec[key]!r}"
-            )
+    saved = meta.get("env_spec", {})
+    if revision_mismatch(saved.get("revision")):
+        raise CheckpointError(
+            f"{source} was trained on {revision_mismatch(saved.get('revision'))}; retrain the run"
+        )
+    diffs = spec_differences(saved, env)
     raise CheckpointError(
         f"{source} was trained for another env ({'; '.join(diffs) or 'env spec differs'}); "
         "evaluate it on the env it was trained on"

@@ -8,13 +8,18 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
+import gymnasium as gym
 import tomli_w
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from snnkart.envs import resolve_env_name
+from snnkart.envs.spec import make_env
 from snnkart.errors import ConfigError
+
+if TYPE_CHECKING:
+    from snnkart.envs.tracks import Track
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -175,6 +180,19 @@ class TrainConfig(BaseModel):
     @property
     def batch_size(self) -> int:
         return self.ppo.num_envs * self.ppo.num_steps
+
+    def make_env(
+        self, render_mode: str | None = None, track: str | Path | Track | None = None
+    ) -> gym.Env:
+        """The env of this config; ``track`` (e.g. the one embedded in a checkpoint) instead
+        of ``self.track``."""
+        return make_env(
+            self.env,
+            self.track if track is None else track,
+            action_mode=self.action_mode,
+            config=self.env_config or None,
+            render_mode=render_mode,
+        )
 
     def to_toml(self) -> str:
         data = self.model_dump(by_alias=True, exclude_none=True)

@@ -34,18 +34,16 @@ import torch
 from torch import nn
 
 from snnkart import faults
-from snnkart.envs import ENV_IDS
 from snnkart.envs.base import KartEnv
+from snnkart.envs.spec import env_spec, spec_hash
 from snnkart.envs.tracks import Track, embed_track, embedded_track, load_track
 from snnkart.errors import RunError
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import (
     RunningMeanStd,
     check_compatible,
-    env_spec,
     load_checkpoint,
     save_checkpoint,
-    spec_hash,
 )
 from snnkart.rl.config import PPOConfig, TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, build_policy
@@ -104,20 +102,6 @@ def normalize_obs(rms: RunningMeanStd, ppo: PPOConfig, raw: np.ndarray) -> np.nd
     if ppo.norm_obs:
         return rms.normalize(raw, ppo.clip_obs)
     return np.asarray(raw, dtype=np.float32)
-
-
-def make_env(
-    cfg: TrainConfig, render_mode: str | None = None, track: str | Path | Track | None = None
-) -> gym.Env:
-    """The env of ``cfg``; ``track`` (e.g. the one embedded in a checkpoint) instead of
-    ``cfg.track``."""
-    return gym.make(
-        ENV_IDS[cfg.env],
-        track=cfg.track if track is None else track,
-        action_mode=cfg.action_mode,
-        config=cfg.env_config or None,
-        render_mode=render_mode,
-    )
 
 
 def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Track:
@@ -206,7 +190,7 @@ class Trainer:
 
         p = cfg.ppo
         self.envs = gym.vector.SyncVectorEnv(
-            [lambda: EpisodeEndInfo(make_env(cfg, track=self.track))] * p.num_envs,
+            [lambda: EpisodeEndInfo(cfg.make_env(track=self.track))] * p.num_envs,
             autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
         )
         self.karts: list[KartEnv] = [e.unwrapped for e in self.envs.envs]  # type: ignore[misc]

@@ -19,7 +19,7 @@ from snnkart.rl.checkpoint import (
 )
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, SNNPolicy
-from snnkart.rl.ppo import checkpoint_track, make_env, normalize_obs, policy_for
+from snnkart.rl.ppo import checkpoint_track, normalize_obs, policy_for
 
 
 @dataclass
@@ -53,7 +53,7 @@ def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Loade
             f"{ckpt}: {exc} (this checkpoint predates embedded tracks: put the track file back "
             "where it was trained, or retrain)"
         ) from exc
-    env = make_env(cfg, track=track)
+    env = cfg.make_env(track=track)
     try:
         check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]
         policy = policy_for(cfg, env.unwrapped)  # type: ignore[arg-type]

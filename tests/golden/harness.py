@@ -98,11 +98,10 @@ def _train_and_eval(tmp: Path) -> dict[str, Any]:
 
 def _torch_actions(run_dir: Path, steps: int) -> list[Any]:
     """The deterministic policy's actions in closed loop from seed 500."""
-    from snnkart.rl.ppo import make_env
     from snnkart.rl.run import TorchPredictor, load_run
 
     run = load_run(run_dir)
-    env = make_env(run.config, track=run.track)
+    env = run.config.make_env(track=run.track)
     predictor = TorchPredictor(run, seed=0)
     actions: list[Any] = []
     try:

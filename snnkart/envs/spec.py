@@ -1,0 +1,98 @@
+"""What a trained policy depends on in an env, and the one way snnkart builds an env.
+
+:func:`env_spec` describes an env (revision, env, track and its hash, action and observation
+layout, env config); checkpoints and manifests record it with :func:`spec_hash`, and
+:func:`spec_differences` says in words how a saved spec differs from an env, so a policy is
+never run on an env whose observations mean something else.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import gymnasium as gym
+
+from snnkart.envs import make
+from snnkart.envs.base import ENV_REVISION, revision_mismatch
+
+if TYPE_CHECKING:
+    from snnkart.envs.base import KartEnv
+    from snnkart.envs.tracks import Track
+
+_ADDED_UNSET = ("route_clearance_m",)
+"""Env config fields added after revision 3 began; left out of the spec while unset (None),
+so runs made before they existed still match."""
+
+SPEC_KEYS = (
+    "env", "track", "track_sha256", "action_mode", "action_space", "observation_layout",
+    "env_config",
+)  # fmt: skip
+
+
+def make_env(
+    env: str,
+    track: str | Path | Track,
+    action_mode: str = "discrete",
+    config: dict[str, Any] | None = None,
+    render_mode: str | None = None,
+) -> gym.Env:
+    """The env ``env`` (any accepted spelling) on ``track``: :func:`snnkart.envs.make` with
+    every argument that defines it named."""
+    return make(
+        env,
+        track=track,
+        action_mode=action_mode,
+        config=config or None,
+        render_mode=render_mode,
+    )
+
+
+def env_spec(env: KartEnv) -> dict[str, Any]:
+    """Everything about an env that a trained policy depends on."""
+    track_text = env.track.to_toml()
+    return {
+        "revision": ENV_REVISION,
+        "env": env.env_name,
+        "track": env.track.name,
+        "track_sha256": hashlib.sha256(track_text.encode()).hexdigest(),
+        "action_mode": env.action_mode,
+        "action_space": str(env.action_space),
+        "observation_layout": [[f.name, f.size, f.low, f.high] for f in env.observation_layout],
+        "obs_dim": int(env.observation_space.low.shape[0]),
+        "env_config": _env_config(env),
+    }
+
+
+def _env_config(env: KartEnv) -> dict[str, Any]:
+    data = env.config.model_dump(mode="json")
+    for key in _ADDED_UNSET:
+        if data.get(key) is None:
+            data.pop(key, None)
+    return data
+
+
+def spec_hash(spec: dict[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def spec_differences(saved: dict[str, Any], env: KartEnv) -> list[str]:
+    """How the saved spec differs from ``env``'s, one phrase per difference; a revision
+    mismatch comes alone, first (what the observations mean has changed)."""
+    mismatch = revision_mismatch(saved.get("revision"))
+    if mismatch:
+        return [mismatch]
+    spec = env_spec(env)
+    diffs = []
+    if saved.get("obs_dim") != spec["obs_dim"]:
+        diffs.append(f"observation size {saved.get('obs_dim')} vs {spec['obs_dim']}")
+    for key in SPEC_KEYS:
+        if saved.get(key) != spec[key]:
+            diffs.append(
+                "track geometry differs"
+                if key == "track_sha256"
+                else f"{key}: {saved.get(key)!r} vs {spec[key]!r}"
+            )
+    return diffs
