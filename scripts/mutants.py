@@ -13,7 +13,7 @@ when that run fails. The script exits non-zero if any mutant survives.
 - ``deploy-mismatch``: Lava returns one flipped spike in every window from the 6th on
   (``LavaSimPredictor.step``); guarded by the parity tests in ``tests/test_deploy.py``.
 - ``parity-guard-off``: ``snnkart deploy`` no longer fails on a parity mismatch
-  (``snnkart.deploy.check_parity`` does nothing); guarded by ``tests/test_deploy.py``.
+  (``snnkart.eval.deploy.check_parity`` does nothing); guarded by ``tests/test_deploy.py``.
 - ``sb3-constant-lr``: ``bench_train`` gives Stable-Baselines3 a constant learning rate while
   snnkart anneals it (as it did before issue 13); guarded by ``tests/test_benchmarks.py``.
 """
@@ -66,9 +66,9 @@ def apply(name: str) -> None:
 
         LavaSimPredictor.step = step  # type: ignore[method-assign]
     elif name == "parity-guard-off":
-        import snnkart.deploy
+        import snnkart.eval.deploy
 
-        snnkart.deploy.check_parity = lambda record: None
+        snnkart.eval.deploy.check_parity = lambda record: None
     elif name == "sb3-constant-lr":
         from stable_baselines3 import PPO
 

@@ -104,20 +104,20 @@ def test_user_errors_are_messages_and_bugs_are_tracebacks(monkeypatch, tmp_path:
     snnkart and must surface with its traceback, not be dressed up as a user error."""
     from typer.testing import CliRunner
 
-    import snnkart.train_cli
+    import snnkart.app.train
     from snnkart.cli import app
     from snnkart.errors import RunError
 
     def user_error(*args: object, **kwargs: object) -> int:
         raise RunError("the run directory is in use")
 
-    monkeypatch.setattr(snnkart.train_cli, "run_training", user_error)
+    monkeypatch.setattr(snnkart.app.train, "run_training", user_error)
     result = CliRunner().invoke(app, ["train", "--out", str(tmp_path / "a")])
     assert result.exit_code == 2 and "error: the run directory is in use" in result.output
 
     def bug(*args: object, **kwargs: object) -> int:
         raise RuntimeError("an internal bug")
 
-    monkeypatch.setattr(snnkart.train_cli, "run_training", bug)
+    monkeypatch.setattr(snnkart.app.train, "run_training", bug)
     result = CliRunner().invoke(app, ["train", "--out", str(tmp_path / "b")])
     assert isinstance(result.exception, RuntimeError) and "error:" not in result.output

@@ -45,7 +45,7 @@ from snnkart.backends.reference import (
 )
 from snnkart.cli import app
 from snnkart.contract.manifest import manifest_path
-from snnkart.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
+from snnkart.eval.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.ppo import normalize_obs

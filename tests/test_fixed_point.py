@@ -169,7 +169,7 @@ class _Shadowed:
 def test_fixed_point_drives_like_the_trained_policy(tmp_path: Path) -> None:
     """On 20 seeded episodes: the fixed-point network picks the trained policy's action on at
     least 98 % of the steps it drives, and finishes within 5 points of it."""
-    from snnkart.evaluate import EvalSummary, run_episodes
+    from snnkart.eval.episodes import EvalSummary, run_episodes
     from snnkart.rl.run import TorchPredictor
 
     run = load_run(FIXTURE)

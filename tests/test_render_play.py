@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import snnkart
+from snnkart.cli.play import Keys, gazebo_action, grid_action, run_play, steer_action
 from snnkart.envs.constants import KART_RADIUS_PX
-from snnkart.play import Keys, gazebo_action, grid_action, run_play, steer_action
 
 pytestmark = pytest.mark.render
 

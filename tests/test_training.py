@@ -26,7 +26,7 @@ from typer.testing import CliRunner
 from snnkart.cli import app
 from snnkart.envs.base import ENV_REVISION
 from snnkart.envs.spec import env_spec, spec_hash
-from snnkart.evaluate import EVAL_SCHEMA, EvalSummary, run_episodes
+from snnkart.eval.episodes import EVAL_SCHEMA, EvalSummary, run_episodes
 from snnkart.rl.checkpoint import (
     CHECKPOINT_SCHEMA,
     CheckpointError,
@@ -616,7 +616,7 @@ def learned(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 @pytest.mark.timeout(600)
 @pytest.mark.parametrize("policy", ["ann", "snn"])
 def test_grid_policy_learns_to_drive(learned: dict[str, Path], policy: str) -> None:
-    from snnkart.evaluate import EvalSummary, run_episodes
+    from snnkart.eval.episodes import EvalSummary, run_episodes
     from snnkart.rl.run import TorchPredictor, load_run
 
     run = load_run(learned[policy])

@@ -180,7 +180,7 @@ def _rasters(nir_path: Path, steps: int) -> dict[str, Any]:
     run of the float32 reference, for each backend and arithmetic."""
     from snnkart.backends.lava_sim import LavaSimPredictor
     from snnkart.backends.reference import NIRReference
-    from snnkart.deploy import make_policy_env
+    from snnkart.eval.deploy import make_policy_env
 
     driver = NIRReference(nir_path, "float32")
     env = make_policy_env(driver.manifest, None, None)

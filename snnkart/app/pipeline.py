@@ -36,8 +36,8 @@ console = Console()
 
 
 def _train(run_dir: Path, steps: int) -> int:
+    from snnkart.app.train import run_training
     from snnkart.rl.config import load_config, read_run_config
-    from snnkart.train_cli import run_training
 
     if (run_dir / "checkpoint.pt").exists():
         meta = (
@@ -63,7 +63,7 @@ def _train(run_dir: Path, steps: int) -> int:
 
 
 def _score(predictor: Any, env: Any, label: str, episodes: int) -> Any:
-    from snnkart.evaluate import EvalSummary, run_episodes
+    from snnkart.eval.episodes import EvalSummary, run_episodes
 
     with Progress(console=console, transient=True) as progress:
         task = progress.add_task(label, total=episodes)
@@ -84,7 +84,7 @@ def run_pipeline(
 
 def _run(out: Path, steps: int, lava_episodes: int, episodes: int) -> dict[str, Any] | None:
     from snnkart.backends.reference import NIRReference
-    from snnkart.cli import _deploy_and_print
+    from snnkart.cli.main import _deploy_and_print
     from snnkart.export.nir_export import export_nir
     from snnkart.rl.run import TorchPredictor, load_run
 

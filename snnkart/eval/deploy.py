@@ -32,7 +32,7 @@ from snnkart.backends.reference import NIRReference, SpikeCounts, WindowResult
 from snnkart.contract.manifest import Manifest, ManifestError
 from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.errors import DeployError, DeployWriteError, ParityError
-from snnkart.evaluate import EpisodeResult, EvalSummary, run_episodes
+from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
 from snnkart.io import atomic_path
 
 DEPLOY_SCHEMA = "snnkart/deploy/v1"

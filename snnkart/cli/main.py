@@ -66,7 +66,7 @@ def play(
 ) -> None:
     """Drive a kart with the keyboard: W/A/S/D, space to brake, R to reset, Esc to quit."""
     name = _check_env_and_track(env, track)
-    from snnkart.play import run_play
+    from snnkart.cli.play import run_play
 
     run_play(name, track, max_steps=max_steps, seed=seed)
 
@@ -89,7 +89,7 @@ def demo(
     """The main job: train a spiking policy on grid/small_S, export it to NIR and drive the kart
     on Lava's simulated Loihi, printing success rates, parity numbers and where the files are."""
     if scripted_gif is not None:
-        from snnkart.demo import scripted_gif as render_gif
+        from snnkart.app.demo import scripted_gif as render_gif
 
         result = render_gif("steer", "small_S", scripted_gif)
         status = "finished" if result["lap_finished"] else "did not finish"
@@ -98,7 +98,7 @@ def demo(
     if steps < 1 or lava_episodes < 1 or eval_episodes < 1:
         _fail("--steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
-    from snnkart.pipeline import run_pipeline
+    from snnkart.app.pipeline import run_pipeline
 
     try:
         finished = run_pipeline(out, steps, lava_episodes, eval_episodes) is not None
@@ -129,9 +129,9 @@ def train(
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
 ) -> None:
     """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
+    from snnkart.app.train import run_training
     from snnkart.rl.checkpoint import CheckpointWriteError
     from snnkart.rl.config import load_config
-    from snnkart.train_cli import run_training
 
     overrides = {
         "env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
@@ -208,7 +208,7 @@ def eval_(
     With ``--backend nir-ref|lava-sim`` RUN_DIR may also be an exported ``policy.nir``; a run
     directory is exported to NIR first. The policy runs on the track it was trained on
     (carried in its checkpoint and manifest), or on ``--track``."""
-    from snnkart.train_cli import run_eval
+    from snnkart.app.train import run_eval
 
     if episodes < 1:
         _fail(f"--episodes must be >= 1, got {episodes}")
@@ -272,7 +272,7 @@ def replay(
     every: Annotated[int, typer.Option(help="show every n-th time step")] = 2,
 ) -> None:
     """Replay the episodes recorded during training, several karts at once."""
-    from snnkart.train_cli import run_replay
+    from snnkart.app.train import run_replay
 
     try:
         run_replay(run_dir, mode, out, every)
@@ -315,7 +315,7 @@ def _deploy_and_print(
 ) -> dict[str, object]:
     from rich.progress import Progress
 
-    from snnkart.deploy import (
+    from snnkart.eval.deploy import (
         DeployWriteError,
         ParityError,
         run_deploy,

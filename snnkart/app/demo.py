@@ -7,18 +7,18 @@ from typing import Any, cast
 
 from snnkart.envs.base import KartEnv
 from snnkart.envs.constants import RENDER_FPS
-from snnkart.video import video_writer
+from snnkart.eval.video import video_writer
 
 
 def scripted_gif(
     env_name: str, track: str, out: str | Path, seed: int = 0, every: int = 3
 ) -> dict[str, Any]:
-    """Drive one episode with :class:`~snnkart.drivers.ScriptedDriver` and save every
+    """Drive one episode with :class:`~snnkart.eval.drivers.ScriptedDriver` and save every
     ``every``-th frame as a GIF at real-time speed. Returns the episode summary."""
     from rich.progress import Progress
 
-    from snnkart.drivers import ScriptedDriver, drive_episode
     from snnkart.envs import make
+    from snnkart.eval.drivers import ScriptedDriver, drive_episode
 
     if every < 1:
         raise ValueError(f"every must be >= 1, got {every}")

@@ -97,9 +97,9 @@ def run_eval(
     track: str | None = None,
 ) -> None:
     from snnkart.envs.tracks import embed_track, load_track, track_sha256
-    from snnkart.evaluate import EvalSummary, run_episodes, write_eval
+    from snnkart.eval.episodes import EvalSummary, run_episodes, write_eval
+    from snnkart.eval.video import check_video_path, video_writer
     from snnkart.rl.run import TorchPredictor, load_run
-    from snnkart.video import check_video_path, video_writer
 
     if video is not None:
         check_video_path(video)
@@ -172,11 +172,11 @@ def run_eval(
 
 def run_replay(run_dir: Path, mode: str, out: Path | None, every: int) -> None:
     from snnkart.envs.render import Renderer
-    from snnkart.replay import frames, load_ghosts
+    from snnkart.eval.replay import frames, load_ghosts
+    from snnkart.eval.video import check_video_path, video_writer
     from snnkart.rl.checkpoint import load_checkpoint
     from snnkart.rl.config import read_run_config
     from snnkart.rl.ppo import checkpoint_track
-    from snnkart.video import check_video_path, video_writer
 
     if every < 1:
         raise UsageError(f"--every must be >= 1, got {every}")

@@ -1,0 +1,3 @@
+from snnkart.cli.main import main
+
+main()
