@@ -121,3 +121,36 @@ def test_user_errors_are_messages_and_bugs_are_tracebacks(monkeypatch, tmp_path:
     monkeypatch.setattr(snnkart.app.train, "run_training", bug)
     result = CliRunner().invoke(app, ["train", "--out", str(tmp_path / "b")])
     assert isinstance(result.exception, RuntimeError) and "error:" not in result.output
+
+
+def test_demo_exits_4_on_a_parity_mismatch(monkeypatch) -> None:
+    from typer.testing import CliRunner
+
+    import snnkart.app.pipeline
+    from snnkart.cli import app
+    from snnkart.errors import ParityError
+
+    def mismatch(*args: object, **kwargs: object) -> None:
+        raise ParityError("lava-sim differs from the fixed reference at env step 7", {})
+
+    monkeypatch.setattr(snnkart.app.pipeline, "run_pipeline", mismatch)
+    result = CliRunner().invoke(app, ["demo", "--steps", "10"])
+    assert result.exit_code == 4, result.output
+    assert "error: lava-sim differs" in result.output and result.exception is not None
+    assert isinstance(result.exception, SystemExit)
+
+
+def test_app_workflows_report_through_the_reporter_and_never_print(tmp_path: Path, capfd) -> None:
+    """The app layer returns records and reports progress to its Reporter; it prints nothing
+    (only the cli's ConsoleReporter writes to the terminal)."""
+    from snnkart.app.evaluate import run_eval
+    from snnkart.app.reporter import Silent
+
+    fixture = Path(__file__).parent / "data" / "policies" / "grid-snn"
+    reporter = Silent()
+    record = run_eval(fixture, 1, 10_000, None, False, None, tmp_path / "eval.json", reporter)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+    assert record["summary"]["episodes"] == 1 and (tmp_path / "eval.json").is_file()
+    assert any("success" in m for m in reporter.messages)
+    assert reporter.messages[-1] == f"results written to {tmp_path / 'eval.json'}"

@@ -6,11 +6,13 @@ Each command imports what it needs inside its own function, so ``snnkart --help`
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, NoReturn
 
 import typer
 
+from snnkart.cli.console import ConsoleReporter
 from snnkart.errors import SnnkartError
 
 app = typer.Typer(
@@ -91,7 +93,10 @@ def demo(
     if scripted_gif is not None:
         from snnkart.app.demo import scripted_gif as render_gif
 
-        result = render_gif("steer", "small_S", scripted_gif)
+        try:
+            result = render_gif("steer", "small_S", scripted_gif, ConsoleReporter())
+        except SnnkartError as exc:
+            _fail(str(exc))
         status = "finished" if result["lap_finished"] else "did not finish"
         typer.echo(f"scripted driver on steer/small_S: {status}; GIF written to {scripted_gif}")
         return
@@ -99,11 +104,16 @@ def demo(
         _fail("--steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
     from snnkart.app.pipeline import run_pipeline
+    from snnkart.errors import ParityError
 
     try:
-        finished = run_pipeline(out, steps, lava_episodes, eval_episodes) is not None
+        finished = run_pipeline(out, ConsoleReporter(), steps, lava_episodes, eval_episodes)
     except KeyboardInterrupt as exc:
         _interrupted(exc, "run the same command again to continue where it stopped")
+    except ParityError as exc:
+        _fail(str(exc), code=4)
+    except SnnkartError as exc:
+        _fail(str(exc))
     if not finished:
         raise typer.Exit(128 + (faults.last_signal or 2))
 
@@ -145,7 +155,7 @@ def train(
 
             load_track(cfg.track)
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
-        code = run_training(cfg, run_dir, resume=resume)
+        code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume=resume)
     except KeyboardInterrupt as exc:  # before training began: nothing to save yet
         _interrupted(exc, "stopped before training began; the run directory is as it was")
     except (CheckpointWriteError, OSError) as exc:
@@ -208,56 +218,37 @@ def eval_(
     With ``--backend nir-ref|lava-sim`` RUN_DIR may also be an exported ``policy.nir``; a run
     directory is exported to NIR first. The policy runs on the track it was trained on
     (carried in its checkpoint and manifest), or on ``--track``."""
-    from snnkart.app.train import run_eval
+    from snnkart.app.evaluate import run_eval, run_eval_exported
 
     if episodes < 1:
         _fail(f"--episodes must be >= 1, got {episodes}")
     if backend != "torch":
-        _eval_exported(run_dir, backend, precision, episodes, seed, checkpoint, out, env, track)
+        _guard_deploy(
+            lambda: run_eval_exported(
+                run_dir,
+                backend,
+                precision,
+                episodes,
+                seed,
+                checkpoint,
+                out,
+                ConsoleReporter(),
+                env,
+                track,
+            ),
+            backend,
+        )
         return
     if run_dir.suffix == ".nir":
         _fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:
         _fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
     try:
-        run_eval(run_dir, episodes, seed, checkpoint, render, video, out, track)
+        run_eval(run_dir, episodes, seed, checkpoint, render, video, out, ConsoleReporter(), track)
     except KeyboardInterrupt as exc:
         _interrupted(exc, "no results were written")
     except SnnkartError as exc:
         _fail(str(exc))
-
-
-def _eval_exported(
-    target: Path,
-    backend: str,
-    precision: str,
-    episodes: int,
-    seed: int,
-    checkpoint: Path | None,
-    out: Path | None,
-    env: str | None = None,
-    track: str | None = None,
-) -> None:
-    import tempfile
-
-    if backend not in ("nir-ref", "lava-sim"):
-        _fail(f"unknown backend {backend!r}; choose torch, nir-ref or lava-sim")
-    with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
-        if target.is_dir():
-            from snnkart.export.nir_export import export_nir
-            from snnkart.rl.run import load_run
-
-            try:
-                nir_file, _ = export_nir(load_run(target, checkpoint), Path(tmp) / "policy.nir")
-            except SnnkartError as exc:
-                _fail(str(exc))
-            default_out = target / f"eval-{backend}-{precision}"
-        else:
-            nir_file = target
-            default_out = target.parent / f"eval-{backend}-{precision}"
-        _deploy_and_print(
-            nir_file, backend, precision, episodes, seed, env, track, out or default_out
-        )
 
 
 @app.command()
@@ -272,10 +263,10 @@ def replay(
     every: Annotated[int, typer.Option(help="show every n-th time step")] = 2,
 ) -> None:
     """Replay the episodes recorded during training, several karts at once."""
-    from snnkart.app.train import run_replay
+    from snnkart.app.replay import run_replay
 
     try:
-        run_replay(run_dir, mode, out, every)
+        run_replay(run_dir, mode, out, every, ConsoleReporter())
     except SnnkartError as exc:
         _fail(str(exc))
 
@@ -303,50 +294,20 @@ def export(
     typer.echo(f"NIR graph written to {nir_path}\nmanifest written to {manifest}")
 
 
-def _deploy_and_print(
-    nir_file: Path,
-    backend: str,
-    precision: str,
-    episodes: int,
-    seed: int,
-    env: str | None,
-    track: str | None,
-    out: Path | None,
-) -> dict[str, object]:
-    from rich.progress import Progress
-
-    from snnkart.eval.deploy import (
-        DeployWriteError,
-        ParityError,
-        run_deploy,
-        summary_lines,
-    )
+def _guard_deploy(run: Callable[[], object], backend: str) -> None:
+    """Run a deploy-like workflow, turning its failures into the command's exit status: 4 for
+    a parity mismatch (its summary is already shown), 2 for bad input, 130/143 for Ctrl-C."""
+    from snnkart.errors import ParityError
 
     try:
-        with Progress(transient=True) as progress:
-            task = progress.add_task(f"{backend} episodes", total=episodes)
-            steps = progress.add_task("env steps", total=None)
-            record = run_deploy(
-                nir_file, backend, precision, episodes, seed, env, track, out,
-                on_episode=lambda r: progress.advance(task),
-                on_step=lambda e: progress.advance(steps),
-            )  # fmt: skip
+        run()
     except KeyboardInterrupt as exc:
         stopped = "no Lava process is left running; " if backend == "lava-sim" else ""
         _interrupted(exc, f"{stopped}no results were written")
-    except (DeployWriteError, ParityError) as exc:
-        for line in summary_lines(exc.record):
-            typer.echo(line)
-        if out is not None and isinstance(exc, ParityError):
-            typer.echo(f"results written to {out / 'deploy.json'}")
-        _fail(str(exc), code=4 if isinstance(exc, ParityError) else 2)
+    except ParityError as exc:
+        _fail(str(exc), code=4)
     except SnnkartError as exc:
         _fail(str(exc))
-    for line in summary_lines(record):
-        typer.echo(line)
-    if out is not None:
-        typer.echo(f"results written to {out / 'deploy.json'}")
-    return record
 
 
 @app.command()
@@ -373,7 +334,14 @@ def deploy(
     checked step by step against the numpy reference; print and write metrics and counts."""
     if out is None:
         out = nir_file.parent / f"deploy-{backend}-{precision}"
-    _deploy_and_print(nir_file, backend, precision, episodes, seed, env, track, out)
+    from snnkart.app.deploy import run_deploy_reported
+
+    _guard_deploy(
+        lambda: run_deploy_reported(
+            nir_file, backend, precision, episodes, seed, env, track, out, ConsoleReporter()
+        ),
+        backend,
+    )
 
 
 @app.command()

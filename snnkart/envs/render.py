@@ -144,6 +144,13 @@ class Renderer:
             y = self._row(frame, y, label, value, TEXT)
         return self._present(frame)
 
+    def quit_requested(self) -> bool:
+        """Whether the user closed the window or pressed Esc since the last call."""
+        return any(
+            e.type == pygame.QUIT or (e.type == pygame.KEYDOWN and e.key == pygame.K_ESCAPE)
+            for e in pygame.event.get()
+        )
+
     def close(self) -> None:
         """Close the window (human mode); safe to call more than once."""
         if self.human and not self._closed:

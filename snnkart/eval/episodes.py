@@ -114,7 +114,8 @@ def run_episodes(
 
 def write_eval(
     path: Path, summary: EvalSummary, results: list[EpisodeResult], extra: dict[str, Any]
-) -> None:
+) -> dict[str, Any]:
+    """Write the eval record to ``path`` (atomically) and return it."""
     record = {
         "schema": EVAL_SCHEMA,
         **extra,
@@ -123,3 +124,4 @@ def write_eval(
     }
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(record, indent=2) + "\n")
+    return record

@@ -1,0 +1,132 @@
+"""``snnkart eval``: the deterministic policy on seeded episodes, with frozen normalisation,
+on torch (a run directory) or on a spiking backend (a run exported on the fly, or a NIR file)."""
+
+from __future__ import annotations
+
+import contextlib
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from snnkart import faults
+from snnkart.app.reporter import Reporter
+from snnkart.envs.constants import RENDER_FPS
+from snnkart.envs.tracks import track_label
+from snnkart.errors import UsageError
+
+
+def _fmt(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
+def run_eval(
+    run_dir: Path,
+    episodes: int,
+    seed: int,
+    checkpoint: Path | None,
+    render: bool,
+    video: Path | None,
+    out: Path | None,
+    reporter: Reporter,
+    track: str | None = None,
+) -> dict[str, Any]:
+    """Evaluate a run's torch policy; write and return the eval record."""
+    from snnkart.envs.tracks import embed_track, load_track, track_sha256
+    from snnkart.eval.episodes import EvalSummary, run_episodes, write_eval
+    from snnkart.eval.video import check_video_path, video_writer
+    from snnkart.rl.run import TorchPredictor, load_run
+
+    if video is not None:
+        check_video_path(video)
+        if render:
+            raise UsageError("choose either --render (a window) or --video (a file), not both")
+    run = load_run(run_dir, checkpoint)
+    assert run.track is not None
+    trained = embed_track(run.track, run.config.track)
+    del trained["toml"]
+    chosen, given = (
+        (load_track(track), track) if track is not None else (run.track, run.config.track)
+    )
+    override = track_sha256(chosen) != trained["sha256"]
+    label = track_label(chosen.name, given)
+    mode = "human" if render else ("rgb_array" if video is not None else None)
+    env = run.config.make_env(render_mode=mode, track=chosen)
+    predictor = TorchPredictor(run, seed=seed)
+    with contextlib.ExitStack() as stack:
+        stack.callback(env.close)
+        stack.enter_context(faults.caught())  # Ctrl-C is taken between env steps
+        task = stack.enter_context(reporter.progress("evaluating", episodes))
+        on_step = None
+        if video is not None:
+            writer = stack.enter_context(video_writer(video, fps=RENDER_FPS / 2))
+
+            def on_step(e: Any) -> None:
+                if e.unwrapped.episode_steps % 2 == 0:
+                    writer.append_data(e.render())
+
+        results = run_episodes(
+            env, predictor, episodes, seed, on_step=on_step, on_episode=lambda r: task.advance()
+        )
+    summary = EvalSummary.of(results)
+    path = out or run_dir / "eval.json"
+    extra = {
+        "run": str(run_dir),
+        "checkpoint": str(run.checkpoint),
+        "global_step": run.meta.get("global_step"),
+        "policy": run.config.policy,
+        "env": run.config.env,
+        "track": chosen.name,
+        "track_given": str(given),
+        "track_sha256": track_sha256(chosen),
+        "trained_track": trained,
+        "track_override": override,
+        "first_seed": seed,
+    }
+    record = write_eval(path, summary, results, extra)
+    reporter.message(
+        f"{run.config.policy.upper()} {run.config.env}/{label} "
+        f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: "
+        f"success {summary.success_rate:.0%}, return {summary.mean_return:.2f} "
+        f"+- {summary.std_return:.2f}, lap time {_fmt(summary.mean_lap_time)} s, "
+        f"crashes {summary.crashes}, stood still {summary.stood_still}, "
+        f"time-outs {summary.timeouts}"
+    )
+    if override:
+        reporter.message(
+            f"note: track {label} is not the track the policy was trained on "
+            f"({track_label(trained['name'], trained['given'])})"
+        )
+    reporter.message(f"results written to {path}")
+    return record
+
+
+def run_eval_exported(
+    target: Path,
+    backend: str,
+    precision: str,
+    episodes: int,
+    seed: int,
+    checkpoint: Path | None,
+    out: Path | None,
+    reporter: Reporter,
+    env: str | None = None,
+    track: str | None = None,
+) -> dict[str, Any]:
+    """Evaluate on a spiking backend: ``target`` is a NIR file, or a run directory exported to a
+    temporary NIR file first; results go to ``out`` or ``eval-<backend>-<precision>/``."""
+    from snnkart.app.deploy import run_deploy_reported
+
+    if backend not in ("nir-ref", "lava-sim"):
+        raise UsageError(f"unknown backend {backend!r}; choose torch, nir-ref or lava-sim")
+    with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
+        if target.is_dir():
+            from snnkart.export.nir_export import export_nir
+            from snnkart.rl.run import load_run
+
+            nir_file, _ = export_nir(load_run(target, checkpoint), Path(tmp) / "policy.nir")
+            default_out = target / f"eval-{backend}-{precision}"
+        else:
+            nir_file, default_out = target, target.parent / f"eval-{backend}-{precision}"
+        return run_deploy_reported(
+            nir_file, backend, precision, episodes, seed, env, track, out or default_out, reporter
+        )

@@ -1,0 +1,81 @@
+"""The terminal side of the app's :class:`~snnkart.app.reporter.Reporter`: rich progress bars
+and lines, written once for every command."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from rich.console import Console
+from rich.progress import (
+    BarColumn,
+    Progress,
+    TaskID,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+
+def fmt(value: float | None, spec: str = ".2f") -> str:
+    return "-" if value is None else format(value, spec)
+
+
+class ConsoleReporter:
+    """Messages on stdout (stderr with ``stderr=True``); transient progress bars."""
+
+    def __init__(self, stderr: bool = False) -> None:
+        self.console = Console(stderr=stderr)
+
+    def message(self, text: str) -> None:
+        self.console.print(text, markup=False, highlight=False)
+
+    @contextlib.contextmanager
+    def progress(
+        self, label: str, total: int | None = None, steps: str | None = None
+    ) -> Iterator[_Task]:
+        with Progress(console=self.console, transient=True) as bar:
+            main = bar.add_task(label, total=total)
+            sub = bar.add_task(steps, total=None) if steps else None
+            yield _Task(bar, main, sub)
+
+    @contextlib.contextmanager
+    def training(self, total: int, completed: int) -> Iterator[Callable[[dict[str, Any]], None]]:
+        columns = (
+            TextColumn("[progress.description]{task.description}"),
+            BarColumn(),
+            TextColumn("{task.completed:,}/{task.total:,} steps"),
+            TextColumn("{task.fields[sps]} steps/s"),
+            TextColumn("return {task.fields[ret]}"),
+            TextColumn("finishes {task.fields[fin]}"),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+        )
+        with Progress(*columns, console=self.console) as bar:
+            task = bar.add_task("PPO", total=total, completed=completed, sps="-", ret="-", fin=0)
+
+            def update(record: dict[str, Any]) -> None:
+                bar.update(
+                    task,
+                    completed=record["global_step"],
+                    sps=f"{record['charts/SPS']:,.0f}",
+                    ret=fmt(record["charts/episodic_return"]),
+                    fin=f"{record['charts/cumulative_finishes']:,}",
+                )
+
+            yield update
+
+
+class _Task:
+    """One progress bar's task (and its optional sub-step counter)."""
+
+    def __init__(self, bar: Progress, main: TaskID, sub: TaskID | None) -> None:
+        self.bar, self.main, self.sub = bar, main, sub
+
+    def advance(self) -> None:
+        self.bar.advance(self.main)
+
+    def step(self) -> None:
+        if self.sub is not None:
+            self.bar.advance(self.sub)
