@@ -26,6 +26,7 @@ from snnkart.envs.constants import (
     RENDER_FPS,
 )
 from snnkart.envs.geodesic import geodesic_field
+from snnkart.envs.geometry import nearest_point
 from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.tracks import Track, load_track
 from snnkart.errors import EnvError
@@ -58,17 +59,6 @@ def revision_mismatch(saved: Any) -> str | None:
 
 
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
-
-
-def _nearest_point(
-    seg: tuple[float, float, float, float], x: float, y: float
-) -> tuple[float, float]:
-    """The point of the checkpoint line ``seg`` = (ax, ay, bx, by) nearest to (x, y)."""
-    ax, ay, bx, by = seg
-    dx, dy = bx - ax, by - ay
-    t = ((x - ax) * dx + (y - ay) * dy) / (dx * dx + dy * dy)
-    t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-    return ax + t * dx, ay + t * dy
 
 
 @dataclass(frozen=True)
@@ -413,7 +403,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         if self._geo_k != cp:
             self._geo_k, self._geo_d = cp, self._geodesic.distance(cp, self._x, self._y)
         route = self._geodesic.route(cp, self._x, self._y)
-        gx, gy = _nearest_point(self._goals[cp], self._x, self._y)
+        gx, gy = nearest_point(self._goals[cp], self._x, self._y)
         dx, dy = route if route is not None else (gx - self._x, gy - self._y)
         dist = self._geo_d if self._geo_d == self._geo_d else math.hypot(gx - self._x, gy - self._y)
         rel = math.atan2(dy, dx) - (self._heading if self.egocentric else 0.0)

@@ -43,6 +43,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from snnkart.envs.constants import KART_RADIUS_PX
+from snnkart.envs.geometry import segment_distance
 from snnkart.envs.tracks import Track, TrackError
 
 CELL_PX = 4.0
@@ -53,14 +54,6 @@ FREE_CLEARANCE_PX = 0.6 * KART_RADIUS_PX
 
 _MOVES = ((1, 0), (0, 1), (1, 1), (1, -1), (1, 2), (2, 1), (1, -2), (2, -1))
 """Half of the 16 neighbour moves (di, dj); the graph is undirected."""
-
-
-def _segment_distance(px: np.ndarray, py: np.ndarray, seg: tuple[float, ...]) -> np.ndarray:
-    """Distance from points (px, py) to the segment (ax, ay, bx, by)."""
-    ax, ay, bx, by = seg
-    dx, dy = bx - ax, by - ay
-    t = np.clip(((px - ax) * dx + (py - ay) * dy) / max(dx * dx + dy * dy, 1e-12), 0.0, 1.0)
-    return np.hypot(px - (ax + t * dx), py - (ay + t * dy))
 
 
 def _crosses(
@@ -187,7 +180,7 @@ def geodesic_field(
     gx, gy = np.meshgrid(xs, ys)  # [rows, cols]
     wall_distance = np.full(gx.shape, np.inf)
     for seg in track.segments:
-        np.minimum(wall_distance, _segment_distance(gx, gy, tuple(seg)), out=wall_distance)
+        np.minimum(wall_distance, segment_distance(gx, gy, *seg), out=wall_distance)
     free = wall_distance >= FREE_CLEARANCE_PX
     index = np.full(gx.shape, -1, dtype=np.int64)
     index[free] = np.arange(int(free.sum()))
@@ -232,7 +225,7 @@ def geodesic_field(
     dist = np.full((len(track.checkpoints), rows, cols), np.nan)
     for k, cp in enumerate(track.checkpoints):
         seg_k = (*cp.a, *cp.b)
-        sources = np.flatnonzero((_segment_distance(fx, fy, seg_k) <= KART_RADIUS_PX) & drive)
+        sources = np.flatnonzero((segment_distance(fx, fy, *seg_k) <= KART_RADIUS_PX) & drive)
         if sources.size == 0:
             raise TrackError(
                 f"track {track.name!r} ({track.source}): checkpoint {k + 1} leaves no room for "

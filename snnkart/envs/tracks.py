@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
+from snnkart.envs.geometry import segment_distance
 from snnkart.errors import TrackError
 
 if sys.version_info >= (3, 11):
@@ -136,12 +137,7 @@ def _num(x: float) -> str:
 
 def point_segment_distance(p: tuple[float, float], seg: np.ndarray) -> np.ndarray:
     """Distance from point ``p`` to each segment row ``(ax, ay, bx, by)`` of ``seg``."""
-    a = seg[:, 0:2]
-    d = seg[:, 2:4] - a
-    w = np.asarray(p, dtype=np.float64) - a
-    dd = np.einsum("ij,ij->i", d, d)
-    t = np.clip(np.einsum("ij,ij->i", w, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    return np.hypot(*(w - t[:, None] * d).T)
+    return segment_distance(p[0], p[1], seg[:, 0], seg[:, 1], seg[:, 2], seg[:, 3])
 
 
 def load_track(track: str | Path | Track) -> Track:

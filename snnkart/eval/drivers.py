@@ -14,6 +14,7 @@ import numpy as np
 
 from snnkart.envs.base import KartEnv
 from snnkart.envs.constants import PIXELS_PER_METRE
+from snnkart.envs.geometry import nearest_point, point_distance
 
 
 class PathFollower:
@@ -32,11 +33,9 @@ class PathFollower:
             p, self.segment + 1
         ) <= self._distance(p, self.segment):
             self.segment += 1
-        a, b = self.points[self.segment], self.points[self.segment + 1]
-        ab = b - a
-        t = float(np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-9), 0.0, 1.0))
+        seg = (*self.points[self.segment], *self.points[self.segment + 1])
         remaining = self.lookahead
-        point, i = a + t * ab, self.segment
+        point, i = np.asarray(nearest_point(seg, *p)), self.segment
         while True:
             end = self.points[i + 1]
             left = float(np.linalg.norm(end - point))
@@ -48,10 +47,7 @@ class PathFollower:
             point, i = end, i + 1
 
     def _distance(self, p: np.ndarray, i: int) -> float:
-        a, b = self.points[i], self.points[i + 1]
-        ab = b - a
-        t = float(np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-9), 0.0, 1.0))
-        return float(np.linalg.norm(p - (a + t * ab)))
+        return point_distance((*self.points[i], *self.points[i + 1]), *p)
 
     def corner_ahead(self, pos: tuple[float, float], distance_px: float) -> float:
         """Largest turn angle (rad) of the path within ``distance_px`` ahead."""
