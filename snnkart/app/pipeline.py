@@ -14,14 +14,13 @@ Steps, each writing into ``out`` (default ``runs/demo``) and skipped when alread
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 from snnkart import faults
 from snnkart.app.reporter import Reporter
-from snnkart.io import atomic_path
+from snnkart.io import write_json
 
 DEMO_ENV = "grid"
 DEMO_TRACK = "small_S"
@@ -131,8 +130,7 @@ def _quantisation(
         "fixed_reference": asdict(summaries["fixed point"]),
         "success_retained": retained,
     }
-    with atomic_path(out / "quantization.json") as tmp:
-        tmp.write_text(json.dumps(quant, indent=2) + "\n")
+    write_json(out / "quantization.json", quant)
     return quant
 
 

@@ -6,7 +6,7 @@ Supported subset (anything else is refused with an error naming the node type):
                                                             \\-> Output   (no readout)
 
 NIR nodes are continuous-time; the chain is discretised with the recorded ``dt`` by forward
-Euler, the convention of snntorch's exporter (``shared/reference/snn-nir-lava.md`` section 1.2):
+Euler, the convention of snntorch's exporter (snntorch writes tau = dt / (1 - beta), r = tau / dt):
 
     LIF:  v <- beta * v + gain * I + leak,   beta = 1 - dt/tau, gain = dt*r/tau, leak = dt*v_leak/tau
     IF:   v <- v + gain * I,                 gain = dt*r            (beta = 1)

@@ -11,7 +11,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from snnkart.envs.constants import KART_RADIUS_M
+from snnkart.envs.constants import DRAG_PER_STEP, KART_RADIUS_M
 
 
 class _Frozen(BaseModel):
@@ -63,7 +63,7 @@ class GridPhysics(_Frozen):
 
     impulse_m_s: float = Field(0.15, gt=0.0, description="speed change per action step, m/s")
     max_speed_m_s: float = Field(4.0, gt=0.0, description="speed cap, m/s (original: 4 m/s)")
-    drag_per_step: float = Field(1.005, ge=1.0, description="velocity divisor per step")
+    drag_per_step: float = Field(DRAG_PER_STEP, ge=1.0, description="velocity divisor per step")
 
 
 TURTLEBOT3_PRESET: dict[str, float] = {
@@ -91,7 +91,7 @@ class GazeboPhysics(_Frozen):
     angular_decay: float = Field(
         1.0 / 3.0, ge=0.0, lt=1.0, description="per-step decay of the angular velocity"
     )
-    drag_per_step: float = Field(1.005, ge=1.0, description="velocity divisor per step")
+    drag_per_step: float = Field(DRAG_PER_STEP, ge=1.0, description="velocity divisor per step")
     time_limit_factor: float = Field(1.0, gt=0.0, description="scales the track's time limit")
 
     @model_validator(mode="before")
@@ -116,7 +116,7 @@ class SteerPhysics(_Frozen):
         35.0, gt=0.0, lt=90.0, description="steering lock, degrees (min turn radius 0.36 m)"
     )
     steer_rate_deg_s: float = Field(240.0, gt=0.0, description="steering speed, degrees/s")
-    drag_per_step: float = Field(1.005, ge=1.0, description="velocity divisor per step")
+    drag_per_step: float = Field(DRAG_PER_STEP, ge=1.0, description="velocity divisor per step")
 
     @property
     def max_steer_rad(self) -> float:

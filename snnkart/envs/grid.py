@@ -43,7 +43,8 @@ class GridEnv(KartEnv[GridConfig]):
 
     ## Rewards
     Per step, the sum of the terms in :class:`~snnkart.envs.config.RewardConfig` (each one
-    reported in ``info["reward_terms"]``): progress toward the next checkpoint line (per metre of distance to its nearest point),
+    reported in ``info["reward_terms"]``): progress toward the next checkpoint line (per metre of the shortest drivable path to it,
+    ``snnkart/envs/geodesic.py``),
     checkpoint bonus, finish bonus, passive time penalty, wall penalty, stand-still penalty.
 
     ## Starting State

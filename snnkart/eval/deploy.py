@@ -17,7 +17,6 @@ Only the two exported files are read, never the training code.
 from __future__ import annotations
 
 import contextlib
-import json
 import platform
 import tempfile
 import time
@@ -33,7 +32,7 @@ from snnkart.contract.manifest import Manifest, ManifestError
 from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.errors import DeployError, DeployWriteError, ParityError
 from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
-from snnkart.io import atomic_path
+from snnkart.io import write_json
 
 DEPLOY_SCHEMA = "snnkart/deploy/v1"
 BACKENDS = ("lava-sim", "nir-ref")
@@ -401,8 +400,7 @@ def run_deploy(
         path = out_dir / "deploy.json"
         try:
             faults.fault_point("deploy-write")
-            with atomic_path(path) as tmp:
-                tmp.write_text(json.dumps(record, indent=2) + "\n")
+            write_json(path, record)
         except OSError as exc:
             raise DeployWriteError(
                 f"the run finished but {path} could not be written: {exc.strerror or exc}; "

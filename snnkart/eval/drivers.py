@@ -71,7 +71,7 @@ class ScriptedDriver:
     """Pure pursuit for any kart env; ``act(env)`` returns an action for the env's action mode.
 
     Speeds are in m/s. The default cruise speed is deliberately modest so that every env
-    (including the steer car with its 0.52 m minimum turning radius) makes the corners.
+    (including the steer car with its 0.36 m minimum turning radius) makes the corners.
     """
 
     def __init__(self, env: KartEnv, cruise_m_s: float = 0.8, corner_m_s: float = 0.45) -> None:

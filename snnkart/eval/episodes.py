@@ -7,7 +7,6 @@ scored by the same :func:`run_episodes`.
 
 from __future__ import annotations
 
-import json
 import statistics
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -17,7 +16,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from snnkart import faults
-from snnkart.io import atomic_path
+from snnkart.io import write_json
 
 EVAL_SCHEMA = "snnkart/eval/v1"
 
@@ -122,6 +121,5 @@ def write_eval(
         "summary": asdict(summary),
         "episodes": [asdict(r) for r in results],
     }
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(record, indent=2) + "\n")
+    write_json(path, record)
     return record

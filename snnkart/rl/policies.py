@@ -2,7 +2,7 @@
 
 Both share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
 The critic is always an MLP: it never leaves the host. The spiking actor is built for
-deployment on Lava (see ``shared/reference/snn-nir-lava.md``): reset-to-zero LIF neurons, one
+deployment on Lava (the README's "Deployment" section): reset-to-zero LIF neurons, one
 beta and one threshold per layer, membranes reset at every env step, no recurrence.
 """
 
