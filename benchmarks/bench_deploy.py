@@ -31,7 +31,7 @@ from snnkart.backends.reference import NIRReference
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.config import load_config
 from snnkart.rl.ppo import Trainer
-from snnkart.rl.run import TorchPredictor, load_run
+from snnkart.rl.trained import TorchPredictor, load_run
 
 
 def record_observations(run: Any, steps: int, seed: int = 0) -> list[np.ndarray]:

@@ -9,7 +9,7 @@ when that run fails. The script exits non-zero if any mutant survives.
 - ``host-current-halved``: the host sends Lava half the first layer's current
   (``FixedPointNetwork.host_current``); guarded by ``tests/test_fixed_point.py``.
 - ``final-values-zero``: the PPO time-limit bootstrap drops ``gamma * V(final_obs)``
-  (``Trainer._final_values`` returns zeros); guarded by ``tests/test_gae.py``.
+  (``Rollout.final_values`` returns zeros); guarded by ``tests/test_gae.py``.
 - ``deploy-mismatch``: Lava returns one flipped spike in every window from the 6th on
   (``LavaSimPredictor.step``); guarded by the parity tests in ``tests/test_deploy.py``.
 - ``parity-guard-off``: ``snnkart deploy`` no longer fails on a parity mismatch
@@ -45,9 +45,11 @@ def apply(name: str) -> None:
         real = FixedPointNetwork.host_current
         FixedPointNetwork.host_current = lambda self, c: real(self, np.asarray(c) / 2)  # type: ignore[method-assign]
     elif name == "final-values-zero":
-        from snnkart.rl.ppo import Trainer
+        from snnkart.rl.rollout import Rollout
 
-        Trainer._final_values = lambda self, info, truncated: np.zeros(truncated.shape[0])  # type: ignore[method-assign]
+        Rollout.final_values = lambda self, policy, obs_rms, info, truncated: np.zeros(  # type: ignore[method-assign]
+            truncated.shape[0]
+        )
     elif name == "deploy-mismatch":
         import dataclasses
 

@@ -49,7 +49,7 @@ from snnkart.eval.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.ppo import normalize_obs
-from snnkart.rl.run import LoadedRun, TorchPredictor, load_run
+from snnkart.rl.trained import LoadedRun, TorchPredictor, load_run
 
 RUNS = {
     "steer": ("steer", "snn", "discrete"),

@@ -27,7 +27,7 @@ from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, ManifestError, 
 from snnkart.envs.spec import spec_hash
 from snnkart.export.nir_export import NIR_DT, ExportError, check_exportable, export_nir
 from snnkart.rl.policies import SNNPolicy
-from snnkart.rl.run import LoadedRun, TorchPredictor, load_run
+from snnkart.rl.trained import LoadedRun, TorchPredictor, load_run
 
 RUNS = {
     "grid": ("grid", "snn", "discrete"),

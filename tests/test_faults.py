@@ -38,7 +38,7 @@ from tiny_runs import train_tiny
 
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.checkpoint import load_checkpoint
-from snnkart.rl.run import load_run
+from snnkart.rl.trained import load_run
 
 pytestmark = pytest.mark.faults
 

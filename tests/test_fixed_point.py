@@ -33,7 +33,7 @@ from snnkart.backends.quantize import ACT_SHIFT, DECAY_UNITY, HOST_CURRENT_MAX, 
 from snnkart.backends.reference import NIRReference, load_chain
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.ppo import normalize_obs
-from snnkart.rl.run import LoadedRun, load_run
+from snnkart.rl.trained import LoadedRun, load_run
 
 OBSERVATIONS = 300
 
@@ -170,7 +170,7 @@ def test_fixed_point_drives_like_the_trained_policy(tmp_path: Path) -> None:
     """On 20 seeded episodes: the fixed-point network picks the trained policy's action on at
     least 98 % of the steps it drives, and finishes within 5 points of it."""
     from snnkart.eval.episodes import EvalSummary, run_episodes
-    from snnkart.rl.run import TorchPredictor
+    from snnkart.rl.trained import TorchPredictor
 
     run = load_run(FIXTURE)
     nir_path, _ = export_nir(run, tmp_path / "policy.nir")

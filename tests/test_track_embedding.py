@@ -23,7 +23,7 @@ from snnkart.contract.manifest import manifest_path
 from snnkart.envs.tracks import embed_track, embedded_track, load_track, parse_track, track_sha256
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from snnkart.rl.run import load_run
+from snnkart.rl.trained import load_run
 
 RING = "ring"
 

@@ -35,7 +35,7 @@ from snnkart.rl.checkpoint import (
 )
 from snnkart.rl.config import ConfigError, TrainConfig, load_config
 from snnkart.rl.ppo import RunError, Trainer
-from snnkart.rl.run import TorchPredictor, load_run
+from snnkart.rl.trained import TorchPredictor, load_run
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -617,7 +617,7 @@ def learned(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 @pytest.mark.parametrize("policy", ["ann", "snn"])
 def test_grid_policy_learns_to_drive(learned: dict[str, Path], policy: str) -> None:
     from snnkart.eval.episodes import EvalSummary, run_episodes
-    from snnkart.rl.run import TorchPredictor, load_run
+    from snnkart.rl.trained import TorchPredictor, load_run
 
     run = load_run(learned[policy])
     assert run.config.seed == 1 and run.meta["global_step"] >= LEARNING[policy]

@@ -34,7 +34,7 @@ def run_eval(
     from snnkart.envs.tracks import embed_track, load_track, track_sha256
     from snnkart.eval.episodes import EvalSummary, run_episodes, write_eval
     from snnkart.eval.video import check_video_path, video_writer
-    from snnkart.rl.run import TorchPredictor, load_run
+    from snnkart.rl.trained import TorchPredictor, load_run
 
     if video is not None:
         check_video_path(video)
@@ -121,7 +121,7 @@ def run_eval_exported(
     with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
         if target.is_dir():
             from snnkart.export.nir_export import export_nir
-            from snnkart.rl.run import load_run
+            from snnkart.rl.trained import load_run
 
             nir_file, _ = export_nir(load_run(target, checkpoint), Path(tmp) / "policy.nir")
             default_out = target / f"eval-{backend}-{precision}"

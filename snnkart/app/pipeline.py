@@ -84,7 +84,7 @@ def _train(run_dir: Path, steps: int, reporter: Reporter) -> int:
 
 def _export(run_dir: Path, out: Path, reporter: Reporter) -> Path:
     from snnkart.export.nir_export import export_nir
-    from snnkart.rl.run import load_run
+    from snnkart.rl.trained import load_run
 
     reporter.message("[2/4] exporting the spiking actor to NIR")
     nir_path, manifest_file = export_nir(load_run(run_dir), out / "policy.nir")
@@ -99,7 +99,7 @@ def _quantisation(
     same seeded episodes: the quantisation's effect on the success rate."""
     from snnkart.backends.reference import NIRReference
     from snnkart.eval.episodes import EvalSummary, run_episodes
-    from snnkart.rl.run import TorchPredictor, load_run
+    from snnkart.rl.trained import TorchPredictor, load_run
 
     reporter.message(f"[3/4] torch policy vs its fixed-point twin on the same {episodes} episodes")
     run = load_run(run_dir)

@@ -16,7 +16,7 @@ def run_replay(run_dir: Path, mode: str, out: Path | None, every: int, reporter:
     from snnkart.eval.video import check_video_path, video_writer
     from snnkart.rl.checkpoint import load_checkpoint
     from snnkart.rl.config import read_run_config
-    from snnkart.rl.ppo import checkpoint_track
+    from snnkart.rl.run_dir import checkpoint_track
 
     if every < 1:
         raise UsageError(f"--every must be >= 1, got {every}")

@@ -284,7 +284,7 @@ def export(
     if not nir_format:
         _fail("choose an export format: --nir")
     from snnkart.export.nir_export import export_nir
-    from snnkart.rl.run import load_run
+    from snnkart.rl.trained import load_run
 
     try:
         run = load_run(run_dir, checkpoint)

@@ -23,7 +23,7 @@ from snnkart.errors import ExportError
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import versions
 from snnkart.rl.policies import SNNPolicy
-from snnkart.rl.run import LoadedRun
+from snnkart.rl.trained import LoadedRun
 
 NIR_DT = 1e-4
 """snntorch's export convention: tau = NIR_DT / (1 - beta), r = tau / NIR_DT."""

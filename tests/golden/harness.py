@@ -98,7 +98,7 @@ def _train_and_eval(tmp: Path) -> dict[str, Any]:
 
 def _torch_actions(run_dir: Path, steps: int) -> list[Any]:
     """The deterministic policy's actions in closed loop from seed 500."""
-    from snnkart.rl.run import TorchPredictor, load_run
+    from snnkart.rl.trained import TorchPredictor, load_run
 
     run = load_run(run_dir)
     env = run.config.make_env(track=run.track)

@@ -19,7 +19,9 @@ from snnkart.rl.checkpoint import (
 )
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, SNNPolicy
-from snnkart.rl.ppo import checkpoint_track, normalize_obs, policy_for
+from snnkart.rl.ppo import policy_for
+from snnkart.rl.rollout import normalize_obs
+from snnkart.rl.run_dir import checkpoint_track
 
 
 @dataclass

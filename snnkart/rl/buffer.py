@@ -1,0 +1,112 @@
+"""Rollout storage and generalised advantage estimation.
+
+A rollout fills preallocated ``[steps, envs, ...]`` tensors (CleanRL's layout); the update
+reads them flattened to ``[steps * envs, ...]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+
+def compute_gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    episode_end: torch.Tensor,
+    last_value: torch.Tensor,
+    gamma: float,
+    gae_lambda: float,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Generalised advantage estimation over ``[steps, envs]`` tensors.
+
+    ``episode_end[t]`` is 1 where the episode ended *after* step ``t`` (terminated or
+    truncated; truncations already carry their bootstrap in ``rewards[t]``). ``last_value`` is
+    V of the observation after the last step. Returns (advantages, returns).
+    """
+    # Small per-step arrays: numpy's scalar-loop overhead is far below torch's.
+    r, v, end = rewards.numpy(), values.numpy(), episode_end.numpy()
+    next_values = np.concatenate([v[1:], last_value.numpy()[None]], axis=0)
+    nonterminal = 1.0 - end
+    deltas = r + gamma * next_values * nonterminal - v
+    adv = np.zeros_like(r)
+    last_gae = np.zeros_like(r[0])
+    for t in reversed(range(r.shape[0])):
+        last_gae = deltas[t] + gamma * gae_lambda * nonterminal[t] * last_gae
+        adv[t] = last_gae
+    advantages = torch.from_numpy(adv)
+    return advantages, advantages + values
+
+
+@dataclass
+class Batch:
+    """A rollout flattened for the update: ``[steps * envs, ...]``."""
+
+    obs: torch.Tensor
+    raw: torch.Tensor
+    actions: torch.Tensor
+    logprobs: torch.Tensor
+    advantages: torch.Tensor
+    returns: torch.Tensor
+    values: torch.Tensor
+    spikes: torch.Tensor | None  # rate encoding: the input spike trains the actor saw
+
+
+@dataclass
+class RolloutBuffer:
+    """One iteration's transitions, ``[steps, envs, ...]``."""
+
+    obs: torch.Tensor  # normalised observations (the actor's and critic's input)
+    raw: torch.Tensor  # raw observations (the rate encoding's input)
+    actions: torch.Tensor
+    logprobs: torch.Tensor
+    rewards: torch.Tensor  # with the time-limit bootstrap added
+    ends: torch.Tensor  # 1 where the episode ended after the step
+    values: torch.Tensor
+    spikes: torch.Tensor | None
+
+    @classmethod
+    def allocate(
+        cls,
+        steps: int,
+        envs: int,
+        obs_dim: int,
+        action_shape: tuple[int, ...],
+        discrete: bool,
+        snn_steps: int,
+        rate: bool,
+    ) -> RolloutBuffer:
+        return cls(
+            obs=torch.zeros(steps, envs, obs_dim),
+            raw=torch.zeros(steps, envs, obs_dim),
+            actions=torch.zeros(
+                (steps, envs, *action_shape), dtype=torch.long if discrete else torch.float32
+            ),
+            logprobs=torch.zeros(steps, envs),
+            rewards=torch.zeros(steps, envs),
+            ends=torch.zeros(steps, envs),
+            values=torch.zeros(steps, envs),
+            spikes=(
+                torch.zeros(steps, envs, snn_steps, obs_dim, dtype=torch.bool) if rate else None
+            ),
+        )
+
+    def flat(self, advantages: torch.Tensor, returns: torch.Tensor) -> Batch:
+        steps, envs, obs_dim = self.obs.shape
+        n = steps * envs
+        return Batch(
+            obs=self.obs.reshape(n, obs_dim),
+            raw=self.raw.reshape(n, obs_dim),
+            actions=self.actions.reshape((n, *self.actions.shape[2:])),
+            logprobs=self.logprobs.reshape(-1),
+            advantages=advantages.reshape(-1),
+            returns=returns.reshape(-1),
+            values=self.values.reshape(-1),
+            spikes=(
+                self.spikes.reshape(n, *self.spikes.shape[2:]).float()
+                if self.spikes is not None
+                else None
+            ),
+        )

@@ -1,0 +1,207 @@
+"""Collecting experience: the vector env, observation normalisation and episode bookkeeping.
+
+gymnasium 1.x vector envs run in ``SAME_STEP`` autoreset mode, so every stored transition is a
+real one (no training on a reset step); the terminal observation comes from
+``info["final_obs"]``. Time-limit truncation is bootstrapped: ``r_t += gamma * V(final_obs)``,
+then the episode is cut for GAE. Termination (finish, crash, standing still) is not.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import torch
+
+from snnkart.envs.base import KartEnv
+from snnkart.envs.tracks import Track
+from snnkart.rl.buffer import RolloutBuffer
+from snnkart.rl.checkpoint import RunningMeanStd
+from snnkart.rl.config import PPOConfig, TrainConfig
+from snnkart.rl.policies import ActorCritic
+
+
+class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
+    """Pass on only what training reads, and only at episode ends.
+
+    The vector env merges every info key of every env on every step; the kart envs report a
+    dozen keys (a nested dict among them), which cost more than the env step itself.
+    """
+
+    KEYS = ("lap_finished", "crashed", "elapsed_time", "position")
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if terminated or truncated:
+            return obs, reward, terminated, truncated, {k: info[k] for k in self.KEYS}
+        return obs, reward, terminated, truncated, {}
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, _ = self.env.reset(**kwargs)
+        return obs, {}
+
+
+def normalize_obs(rms: RunningMeanStd, ppo: PPOConfig, raw: np.ndarray) -> np.ndarray:
+    """The float32 observation the critic and the ANN actor see (the policy's input)."""
+    if ppo.norm_obs:
+        return rms.normalize(raw, ppo.clip_obs)
+    return np.asarray(raw, dtype=np.float32)
+
+
+@dataclass
+class Progress:
+    """Counters that survive a resume."""
+
+    global_step: int = 0
+    iteration: int = 0
+    episodes: int = 0
+    finishes: int = 0
+    first_finish_step: int = -1
+
+    def state(self) -> dict[str, int]:
+        return dict(self.__dict__)
+
+
+@dataclass
+class IterationStats:
+    """What one iteration's finished episodes and spiking layers did."""
+
+    returns: list[float] = field(default_factory=list)
+    lengths: list[int] = field(default_factory=list)
+    finishes: int = 0
+    crashes: int = 0
+    lap_times: list[float] = field(default_factory=list)
+    rates: list[np.ndarray] = field(default_factory=list)
+
+
+class Rollout:
+    """The training envs and what carries over between rollouts: the next observation and
+    the running return and length of every env's episode."""
+
+    def __init__(self, cfg: TrainConfig, track: Track) -> None:
+        self.cfg, self.ppo = cfg, cfg.ppo
+        self.envs = gym.vector.SyncVectorEnv(
+            [lambda: EpisodeEndInfo(cfg.make_env(track=track))] * cfg.ppo.num_envs,
+            autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
+        )
+        self.karts: list[KartEnv] = [e.unwrapped for e in self.envs.envs]  # type: ignore[misc]
+        steps, envs = cfg.ppo.num_steps, cfg.ppo.num_envs
+        self.positions = np.zeros((steps, envs, 2), dtype=np.float32)  # trajectories
+        self.ends = np.zeros((steps, envs), dtype=bool)
+
+    def reset(self, seed: int) -> None:
+        self.next_raw, _ = self.envs.reset(seed=seed)
+        self.ep_return = np.zeros(self.ppo.num_envs)
+        self.ep_length = np.zeros(self.ppo.num_envs, dtype=np.int64)
+
+    def collect(
+        self,
+        policy: ActorCritic,
+        obs_rms: RunningMeanStd,
+        buf: RolloutBuffer,
+        progress: Progress,
+        stats: IterationStats,
+        interrupted: Callable[[], bool],
+    ) -> bool:
+        """Fill ``buf`` with one rollout; False if it was cut short by an interrupt."""
+        p, E = self.ppo, self.ppo.num_envs
+        self.positions[:] = 0.0
+        self.ends[:] = False
+        for step in range(p.num_steps):
+            progress.global_step += E
+            if p.norm_obs:
+                obs_rms.update(self.next_raw)
+            obs_t = torch.from_numpy(normalize_obs(obs_rms, p, self.next_raw))
+            raw_t = torch.from_numpy(np.asarray(self.next_raw, dtype=np.float32))
+            with torch.no_grad():
+                out = policy(obs_t, raw_t)
+            buf.obs[step], buf.raw[step] = obs_t, raw_t
+            buf.actions[step], buf.logprobs[step], buf.values[step] = (
+                out.action,
+                out.log_prob,
+                out.value,
+            )
+            if buf.spikes is not None and out.input_spikes is not None:
+                buf.spikes[step] = out.input_spikes.bool()
+            if out.rates is not None:
+                stats.rates.append(out.rates.numpy())
+            self._step(step, out.action.numpy(), policy, obs_rms, buf, progress, stats)
+            if interrupted():
+                return False
+        return True
+
+    def _step(
+        self,
+        step: int,
+        action: np.ndarray,
+        policy: ActorCritic,
+        obs_rms: RunningMeanStd,
+        buf: RolloutBuffer,
+        progress: Progress,
+        stats: IterationStats,
+    ) -> None:
+        if not policy.discrete:
+            action = np.clip(action, -1.0, 1.0)
+        self.next_raw, reward, terminated, truncated, info = self.envs.step(action)
+        reward = reward.astype(np.float64)
+        done = terminated | truncated
+        if self.cfg.run.trajectories:
+            self.positions[step] = [
+                info["final_info"]["position"][i] if done[i] else kart.position
+                for i, kart in enumerate(self.karts)
+            ]
+            self.ends[step] = done
+        self.ep_return += reward
+        self.ep_length += 1
+        if truncated.any():
+            reward = reward + self.ppo.gamma * self.final_values(policy, obs_rms, info, truncated)
+        buf.rewards[step] = torch.from_numpy(reward.astype(np.float32))
+        buf.ends[step] = torch.from_numpy(done.astype(np.float32))
+        for i in np.flatnonzero(done):
+            self._episode_end(info, i, progress, stats)
+
+    def final_values(
+        self,
+        policy: ActorCritic,
+        obs_rms: RunningMeanStd,
+        info: dict[str, Any],
+        truncated: np.ndarray,
+    ) -> np.ndarray:
+        """V(final observation) for truncated envs, 0 elsewhere (the time-limit bootstrap)."""
+        values = np.zeros(truncated.shape[0])
+        idx = np.flatnonzero(truncated)
+        final = np.stack([info["final_obs"][i] for i in idx])
+        norm = normalize_obs(obs_rms, self.ppo, final)
+        with torch.no_grad():
+            values[idx] = policy.value(torch.from_numpy(norm)).numpy()
+        return values
+
+    def last_value(self, policy: ActorCritic, obs_rms: RunningMeanStd) -> torch.Tensor:
+        """V of the observation after the rollout's last step."""
+        with torch.no_grad():
+            last_norm = normalize_obs(obs_rms, self.ppo, self.next_raw)
+            return policy.value(torch.from_numpy(last_norm))
+
+    def _episode_end(
+        self, info: dict[str, Any], i: int, progress: Progress, stats: IterationStats
+    ) -> None:
+        final = info["final_info"]
+        finished = bool(final["lap_finished"][i])
+        progress.episodes += 1
+        stats.returns.append(float(self.ep_return[i]))
+        stats.lengths.append(int(self.ep_length[i]))
+        if finished:
+            stats.finishes += 1
+            stats.lap_times.append(float(final["elapsed_time"][i]))
+            progress.finishes += 1
+            if progress.first_finish_step < 0:
+                progress.first_finish_step = progress.global_step
+        if bool(final["crashed"][i]):
+            stats.crashes += 1
+        self.ep_return[i], self.ep_length[i] = 0.0, 0
+
+    def close(self) -> None:
+        self.envs.close()

@@ -1,0 +1,87 @@
+"""A training run's directory: its config, checkpoints, metrics, TensorBoard and trajectories.
+
+run_dir/config.toml            the resolved config (``--resume`` reads it back)
+run_dir/checkpoint.pt (.json)  the latest checkpoint; checkpoints/iter_NNNNNN.pt the history
+run_dir/metrics.jsonl          one JSON record per iteration
+run_dir/tb/                    TensorBoard scalars (``run.tensorboard``)
+run_dir/trajectories/          kart positions per iteration (``run.trajectories``), for replay
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from snnkart.envs.tracks import Track, embedded_track, load_track
+from snnkart.io import atomic_path
+from snnkart.rl.checkpoint import save_checkpoint
+from snnkart.rl.config import TrainConfig
+
+
+def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Track:
+    """The track a checkpoint was trained on: the one embedded in it, or for checkpoints
+    written before tracks were embedded, ``cfg.track`` (which must then still exist)."""
+    if meta.get("track"):
+        return embedded_track(meta["track"], str(source))
+    return load_track(cfg.track)
+
+
+class RunDir:
+    """Writes everything a run keeps; every file is replaced atomically or appended to."""
+
+    def __init__(self, path: Path, tensorboard: bool) -> None:
+        self.path = Path(path)
+        self.metrics_path = self.path / "metrics.jsonl"
+        self.tensorboard = tensorboard
+        self.writer: Any = None
+
+    @property
+    def latest(self) -> Path:
+        return self.path / "checkpoint.pt"
+
+    def write_config(self, cfg: TrainConfig) -> None:
+        self.path.mkdir(parents=True, exist_ok=True)
+        with atomic_path(self.path / "config.toml") as tmp:
+            tmp.write_text(cfg.to_toml())
+
+    def save(self, state: dict[str, Any], meta: dict[str, Any], iteration: int) -> Path:
+        """Write ``checkpoint.pt`` (latest) and a copy under ``checkpoints/``."""
+        save_checkpoint(self.latest, state, meta)
+        save_checkpoint(self.path / "checkpoints" / f"iter_{iteration:06d}.pt", state, meta)
+        return self.latest
+
+    def open_tensorboard(self) -> None:
+        if self.tensorboard and self.writer is None:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self.writer = SummaryWriter(str(self.path / "tb"))
+
+    def log(self, record: dict[str, Any], global_step: int) -> None:
+        """Append the iteration's record to metrics.jsonl and its scalars to TensorBoard."""
+        with open(self.metrics_path, "a") as f:
+            f.write(json.dumps(record) + "\n")
+        if self.writer is not None:
+            for key, value in record.items():
+                if "/" in key and value is not None:
+                    self.writer.add_scalar(key, value, global_step)
+
+    def write_trajectories(
+        self, iteration: int, global_step: int, positions: np.ndarray, ends: np.ndarray
+    ) -> None:
+        path = self.path / "trajectories" / f"iter_{iteration:06d}.npz"
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(
+                f, positions=positions, episode_end=ends, global_step=np.int64(global_step)
+            )
+
+    def flush(self) -> None:
+        if self.writer is not None:
+            self.writer.flush()
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.close()
+            self.writer = None
