@@ -27,7 +27,9 @@ from process_marks import marked_processes, shm_segments
 from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
-from snnkart.backends.lava_sim import LavaSimPredictor, LavaWorker, lava_spec
+from snnkart.backends.base import split_window
+from snnkart.backends.lava_params import lava_spec
+from snnkart.backends.lava_sim import LavaSimPredictor, LavaWorker
 from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
 from snnkart.backends.quantize import (
     DECAY_UNITY,
@@ -37,12 +39,7 @@ from snnkart.backends.quantize import (
     check_lava_compatible,
     quantize,
 )
-from snnkart.backends.reference import (
-    ChainSimulator,
-    NIRReference,
-    load_chain,
-    split_window,
-)
+from snnkart.backends.reference import ChainSimulator, NIRReference, load_chain
 from snnkart.cli import app
 from snnkart.contract.manifest import manifest_path
 from snnkart.eval.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
@@ -582,7 +579,7 @@ def test_lava_runs_foreign_chains_of_one_and_three_layers_bit_exact(
     rng = np.random.default_rng(5)
     first = chain.layers[0]
     windows, logical_flips, spikes = 25, 0, np.zeros(len(sizes), dtype=np.int64)
-    worker = LavaWorker(lava_spec(chain, T, precision, fixed))
+    worker = LavaWorker(lava_spec(chain, T, "float64" if fixed is None else "fixed", fixed))
     try:
         for _ in range(windows):
             x = rng.normal(0.0, 1.0, (T, chain.n_in))  # a different input at every SNN step
@@ -1024,3 +1021,20 @@ def test_quantize_bias_fits_or_is_refused(exported: Path) -> None:
     assert np.all(np.abs(q.bias_mant) <= 4095), q.bias_mant
     np.testing.assert_allclose(represented, 0.5, rtol=0.01, err_msg="the bias was saturated")
     _check_fixed(weak)
+
+
+def test_backend_registry_names_one_arithmetic_per_precision(exported: Path) -> None:
+    from snnkart.backends.base import arithmetic_for, open_backend
+    from snnkart.errors import DeployError
+
+    assert arithmetic_for("lava-sim", "float") == "float64"
+    assert arithmetic_for("lava-sim", "fixed") == "fixed"
+    assert arithmetic_for("nir-ref", "float") == "float64"
+    assert arithmetic_for("nir-ref", "float32") == "float32"
+    with pytest.raises(DeployError, match="--precision for lava-sim is float or fixed"):
+        arithmetic_for("lava-sim", "float32")
+    with pytest.raises(DeployError, match="unknown backend 'loihi'"):
+        arithmetic_for("loihi", "fixed")
+    with open_backend(exported, "nir-ref", "float", seed=3) as backend:
+        assert (backend.name, backend.arithmetic) == ("nir-ref", "float64")
+        assert backend.fixed is None and backend.counts.env_steps == 0

@@ -35,10 +35,12 @@ from typing import Any
 import numpy as np
 
 from snnkart import faults
+from snnkart.backends.base import Arithmetic, SpikeCounts, WindowResult, split_window
 from snnkart.backends.host import HostCodec
+from snnkart.backends.lava_params import LavaSpec, lava_spec
 from snnkart.backends.lava_worker import HEADER, write_msg
-from snnkart.backends.quantize import FixedPointNetwork, quantize
-from snnkart.backends.reference import SpikeCounts, WindowResult, load_chain, split_window
+from snnkart.backends.quantize import quantize
+from snnkart.backends.reference import load_chain
 from snnkart.errors import BackendError
 from snnkart.faults import fault_point
 
@@ -53,38 +55,6 @@ INTERRUPT_GRACE = 2.0
 
 class LavaBackendError(BackendError):
     """The Lava worker failed, died or timed out; the message says what it reported."""
-
-
-def lava_spec(chain: Any, num_steps: int, precision: str, fixed: FixedPointNetwork | None) -> dict:
-    """The worker's network description: Lava LIF/Dense parameters per layer."""
-    layers = []
-    for i, layer in enumerate(chain.layers):
-        if precision == "float":
-            layers.append({
-                "du": 1.0,
-                "dv": 1.0 - float(layer.beta[0]),
-                "vth": float(layer.threshold[0]),
-                "bias_mant": np.zeros(layer.size) if i == 0 else layer.bias.astype(np.float64),
-                "bias_exp": 0,
-                "weight": None if i == 0 else layer.weight.astype(np.float64),
-            })  # fmt: skip
-        else:
-            assert fixed is not None
-            q = fixed.layers[i]
-            layers.append({
-                "du": q.du,
-                "dv": q.dv,
-                "vth": q.vth,
-                "bias_mant": q.bias_mant.astype(np.int32),
-                "bias_exp": q.bias_exp,
-                "weight": None if q.weight is None else q.weight.astype(np.int32),
-            })  # fmt: skip
-    return {
-        "precision": precision,
-        "num_steps": num_steps,
-        "sizes": chain.sizes,
-        "layers": layers,
-    }
 
 
 class LavaWorker:
@@ -103,7 +73,7 @@ class LavaWorker:
       caller's cleanup): the same, from an ``atexit`` hook.
     """
 
-    def __init__(self, spec: dict[str, Any]) -> None:
+    def __init__(self, spec: LavaSpec) -> None:
         self.stderr = tempfile.TemporaryFile()
         env = {**os.environ, "PYTHONUNBUFFERED": "1", "SNNKART_FAULT_PGID": str(os.getpgrp())}
         self.closed = False
@@ -300,21 +270,23 @@ def _stop_live_workers() -> None:
 class LavaSimPredictor:
     """Predictor running the exported policy on Lava; ``step`` also returns the window."""
 
+    name = "lava-sim"
+
     def __init__(self, nir_path: str | Path, precision: str = "fixed", seed: int = 0) -> None:
         if precision not in PRECISIONS:
             raise ValueError(f"unknown precision {precision!r}; choose float or fixed")
         self.chain, self.manifest = load_chain(nir_path)
-        self.precision = precision
+        self.precision = precision  # the user's word; the arithmetic it means:
+        self.arithmetic: Arithmetic = "fixed" if precision == "fixed" else "float64"
         self.fixed = quantize(self.chain) if precision == "fixed" else None
-        arithmetic = "fixed" if precision == "fixed" else "float64"
-        self.codec = HostCodec(self.chain, self.manifest, arithmetic, self.fixed, seed)
+        self.codec = HostCodec(self.chain, self.manifest, self.arithmetic, self.fixed, seed)
         self.T = self.manifest.num_steps
         self.counts = SpikeCounts(len(self.chain.layers))
         if self.fixed is None:
             from snnkart.backends.quantize import check_lava_compatible
 
             check_lava_compatible(self.chain)
-        spec = lava_spec(self.chain, self.T, precision, self.fixed)
+        spec = lava_spec(self.chain, self.T, self.arithmetic, self.fixed)
         self.worker = LavaWorker(spec)
         self.startup_s = float(self.worker.info["startup_s"])
 

@@ -5,7 +5,7 @@ Run as ``python -m snnkart.backends.lava_worker`` by :mod:`snnkart.backends.lava
 imported by the rest of snnkart: importing lava sets the multiprocessing start method to fork,
 which must not happen in a process that trains or uses torch's multiprocessing.
 
-Protocol (length-prefixed pickles): stdin receives a spec dict, then ``("window", current)``
+Protocol (length-prefixed pickles): stdin receives a :class:`~snnkart.backends.lava_params.LavaSpec`, then ``("window", current)``
 per env step and finally ``("close",)``; the protocol stream answers ``("ready", info)``,
 ``("raster", array)`` per window, ``("closed", info)`` or ``("error", message)``. Anything
 Lava prints goes to stderr. On end of input (the parent died) the run is closed the same way.
@@ -30,9 +30,12 @@ import struct
 import sys
 import time
 import traceback
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from snnkart.backends.lava_params import LavaSpec
 
 RECV_TIMEOUT = 60.0
 """Seconds one window may take before the worker declares Lava hung."""
@@ -69,7 +72,7 @@ def read_msg(stream: IO[bytes]) -> Any:
 class LavaNetwork:
     """The compiled Lava network and its running runtime."""
 
-    def __init__(self, spec: dict[str, Any]) -> None:
+    def __init__(self, spec: LavaSpec) -> None:
         from lava.magma.core.run_conditions import RunSteps
         from lava.magma.core.run_configs import Loihi2SimCfg
         from lava.proc.dense.process import Dense
@@ -78,21 +81,21 @@ class LavaNetwork:
         from snnkart.backends.lava_procs.bridge import HostBridge
         from snnkart.faults import fault_point
 
-        self.precision = spec["precision"]
-        self.T = int(spec["num_steps"])
-        self.sizes = tuple(int(n) for n in spec["sizes"])
+        self.fixed = spec.arithmetic == "fixed"
+        self.T = int(spec.num_steps)
+        self.sizes = tuple(int(n) for n in spec.sizes)
         K = len(self.sizes)
         self.W = self.T + K - 1
         self.bridge = HostBridge(sizes=self.sizes, num_steps=self.T, name="host_bridge")
         self.lifs = []
-        for i, layer in enumerate(spec["layers"]):
+        for i, layer in enumerate(spec.layers):
             lif = LIFReset(
                 shape=(self.sizes[i],),
-                du=layer["du"],
-                dv=layer["dv"],
-                vth=layer["vth"],
-                bias_mant=layer["bias_mant"],
-                bias_exp=layer["bias_exp"],
+                du=layer.du,
+                dv=layer.dv,
+                vth=layer.vth,
+                bias_mant=layer.bias_mant,
+                bias_exp=layer.bias_exp,
                 reset_interval=self.W,
                 reset_offset=(i + 1) % self.W,
                 name=f"lif{i}",
@@ -102,17 +105,17 @@ class LavaNetwork:
         self.bridge.a_out.connect(self.lifs[0].a_in)
         self.dense = []
         for i in range(1, K):
-            layer = spec["layers"][i]
+            layer = spec.layers[i]
             kwargs: dict[str, Any] = {}
-            if self.precision == "fixed":
+            if self.fixed:
                 kwargs = {"num_weight_bits": 8, "weight_exp": 0}
-            dense = Dense(weights=layer["weight"], name=f"dense{i}", **kwargs)
+            dense = Dense(weights=layer.weight, name=f"dense{i}", **kwargs)
             self.lifs[i - 1].s_out.connect(dense.s_in)
             dense.a_out.connect(self.lifs[i].a_in)
             self.dense.append(dense)
-        tag = "fixed_pt" if self.precision == "fixed" else "floating_pt"
+        tag = "fixed_pt" if self.fixed else "floating_pt"
         self.run_cfg = Loihi2SimCfg(select_tag=tag)
-        self.dtype = np.int32 if self.precision == "fixed" else np.float64
+        self.dtype = np.int32 if self.fixed else np.float64
         t0 = time.perf_counter()
         # SIGINT is ignored while the runtime forks its processes, so they inherit "ignore":
         # the parent owns Ctrl-C and ends the run through the close request.

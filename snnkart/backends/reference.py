@@ -1,7 +1,7 @@
 """The numpy reference executor of an exported policy: the oracle every other backend is checked
 against. It reads only the ``.nir`` file and its manifest, never training code.
 
-Three arithmetics (``mode``):
+Three arithmetics (:data:`snnkart.backends.base.Arithmetic`):
 
 - ``float32``: torch's order of operations, one logical window of T SNN steps per env step
   starting from zero membranes: ``v = beta v + I``, spike if ``v - theta > 0``, reset to 0.
@@ -28,13 +28,21 @@ need snntorch-style layers (uniform beta and threshold, reset to 0, no leak term
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from snnkart.backends.base import (
+    ARITHMETICS,
+    Arithmetic,
+    SpikeCounts,
+    WindowResult,
+    check_arithmetic,
+    split_window,
+)
 from snnkart.backends.host import HostCodec
+from snnkart.backends.lava_params import lava_layers
 from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
 from snnkart.backends.quantize import (
     ACT_SHIFT,
@@ -46,94 +54,6 @@ from snnkart.backends.quantize import (
 )
 from snnkart.contract.manifest import Manifest, ManifestError, manifest_path
 from snnkart.errors import NIRFileError
-
-REFERENCE_MODES = ("float32", "float64", "fixed")
-
-
-@dataclass
-class SpikeCounts:
-    """Per layer: spikes, synaptic operations (spikes x fan-out) and neuron updates of the
-    policy's logical steps, and apart from them the pipeline's fill/drain overhead."""
-
-    n_layers: int = 2
-    spikes: np.ndarray = field(init=False)
-    synops: np.ndarray = field(init=False)
-    neuron_updates: np.ndarray = field(init=False)
-    overhead_spikes: np.ndarray = field(init=False)
-    overhead_synops: np.ndarray = field(init=False)
-    overhead_neuron_updates: np.ndarray = field(init=False)
-    env_steps: int = 0
-
-    def __post_init__(self) -> None:
-        for name in (
-            "spikes", "synops", "neuron_updates",
-            "overhead_spikes", "overhead_synops", "overhead_neuron_updates",
-        ):  # fmt: skip
-            setattr(self, name, np.zeros(self.n_layers, dtype=np.int64))
-
-    def add(self, window: WindowResult, fan_out: tuple[int, ...]) -> None:
-        fan = np.asarray(fan_out, dtype=np.int64)
-        self.spikes += window.spikes
-        self.synops += window.spikes * fan
-        self.neuron_updates += window.neuron_updates
-        self.overhead_spikes += window.overhead_spikes
-        self.overhead_synops += window.overhead_spikes * fan
-        self.overhead_neuron_updates += window.overhead_neuron_updates
-        self.env_steps += 1
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "env_steps": self.env_steps,
-            "spikes": self.spikes.tolist(),
-            "synops": self.synops.tolist(),
-            "neuron_updates": self.neuron_updates.tolist(),
-            "pipeline_overhead": {
-                "spikes": self.overhead_spikes.tolist(),
-                "synops": self.overhead_synops.tolist(),
-                "neuron_updates": self.overhead_neuron_updates.tolist(),
-            },
-        }
-
-
-@dataclass
-class WindowResult:
-    """One env step: the raster of every Lava step in the window (``[rows, sum(sizes)]``,
-    rows = T for float32, T + L for the Lava arithmetics) and what it means."""
-
-    raster: np.ndarray
-    logical: np.ndarray  # [T, sum(sizes)] the policy's own steps, layer by layer
-    last_counts: np.ndarray  # [n_last] spikes of the last layer over the logical steps
-    spikes: np.ndarray  # per layer, logical steps
-    neuron_updates: np.ndarray
-    overhead_spikes: np.ndarray
-    overhead_neuron_updates: np.ndarray
-
-
-def split_window(raster: np.ndarray, sizes: tuple[int, ...], T: int) -> WindowResult:
-    """Separate a pipelined window (row i..i+T-1 are layer i's logical steps) into the policy's
-    steps and the fill/drain overhead. A float32 window (T rows) has no overhead."""
-    rows = raster.shape[0]
-    pipelined = rows != T
-    offsets = np.cumsum((0, *sizes))
-    logical = np.zeros((T, offsets[-1]), dtype=bool)
-    spikes, overhead = [], []
-    for i in range(len(sizes)):
-        cols = slice(offsets[i], offsets[i + 1])
-        shift = i if pipelined else 0
-        logical[:, cols] = raster[shift : shift + T, cols]
-        valid = int(logical[:, cols].sum())
-        spikes.append(valid)
-        overhead.append(int(raster[:, cols].sum()) - valid)
-    n_arr = np.asarray(sizes, dtype=np.int64)
-    return WindowResult(
-        raster=raster,
-        logical=logical,
-        last_counts=logical[:, offsets[-2] :].sum(axis=0),
-        spikes=np.asarray(spikes, dtype=np.int64),
-        neuron_updates=n_arr * T,
-        overhead_spikes=np.asarray(overhead, dtype=np.int64),
-        overhead_neuron_updates=n_arr * (rows - T),
-    )
 
 
 class ChainSimulator:
@@ -148,19 +68,17 @@ class ChainSimulator:
         self,
         chain: ChainNetwork,
         num_steps: int,
-        mode: str,
+        arithmetic: str,
         fixed: FixedPointNetwork | None = None,
     ) -> None:
-        if mode not in REFERENCE_MODES:
-            raise ValueError(f"unknown mode {mode!r}; choose one of {', '.join(REFERENCE_MODES)}")
         self.chain = chain
-        self.mode = mode
+        self.arithmetic: Arithmetic = check_arithmetic(arithmetic)
         self.T = num_steps
         self.sizes = chain.sizes
         K = len(self.sizes)
         self.L = K - 1
         self.W = num_steps + self.L
-        if mode == "float32":
+        if self.arithmetic == "float32":
             f32 = np.float32
             self.weights = [layer.weight for layer in chain.layers]
             self.biases = [layer.bias for layer in chain.layers]
@@ -174,15 +92,15 @@ class ChainSimulator:
         self.t = 1  # Lava's first time step
         self.u = [np.zeros(n) for n in self.sizes]
         self.v = [np.zeros(n) for n in self.sizes]
-        if mode == "float64":
+        if self.arithmetic == "float64":
+            # Lava float: u = u (1 - du) + a_in;  v = v (1 - dv) + u + bias  (du = 1), with the
+            # parameters Lava's processes get (snnkart.backends.lava_params)
+            params = lava_layers(chain, "float64")
             self.weights = [layer.weight.astype(np.float64) for layer in chain.layers]
-            # Lava float: u = u (1 - du) + a_in;  v = v (1 - dv) + u + bias  (du = 1)
-            self.du = 1.0
-            self.dv = [1.0 - float(layer.beta[0]) for layer in chain.layers]
-            self.vth = [float(layer.threshold[0]) for layer in chain.layers]
-            self.bias = [np.zeros(self.sizes[0])] + [
-                layer.bias.astype(np.float64) for layer in chain.layers[1:]
-            ]
+            self.du = params[0].du
+            self.dv = [float(p.dv) for p in params]
+            self.vth = [float(p.vth) for p in params]
+            self.bias = [np.asarray(p.bias_mant, dtype=np.float64) for p in params]
             self.buffers = [np.zeros(n) for n in self.sizes[1:]]
         else:
             self.fixed = fixed if fixed is not None else quantize(chain)
@@ -254,7 +172,7 @@ class ChainSimulator:
         K, T = len(self.sizes), self.T
         offsets = np.cumsum((0, *self.sizes))
         raster = np.zeros((self.W, offsets[-1]), dtype=bool)
-        lif = self._lif_float if self.mode == "float64" else self._lif_fixed
+        lif = self._lif_float if self.arithmetic == "float64" else self._lif_fixed
         zero = np.zeros_like(current[0])
         for r in range(self.W):
             spikes = []
@@ -264,7 +182,7 @@ class ChainSimulator:
                 raster[r, offsets[i] : offsets[i + 1]] = s
                 spikes.append(s)
             for i in range(1, K):  # each Dense sent its old buffer first, then integrates
-                w = self.weights[i] if self.mode == "float64" else self.qweights[i - 1]
+                w = self.weights[i] if self.arithmetic == "float64" else self.qweights[i - 1]
                 assert w is not None
                 self.buffers[i - 1] = w[:, spikes[i - 1]].sum(axis=1)
             self.t += 1
@@ -273,7 +191,7 @@ class ChainSimulator:
     def window(self, current: np.ndarray) -> np.ndarray:
         if current.shape != (self.T, self.sizes[0]):
             raise ValueError(f"current must be [T, n1] = {(self.T, self.sizes[0])}")
-        if self.mode == "float32":
+        if self.arithmetic == "float32":
             return self._window_float32(current)
         return self._window_lava(current)
 
@@ -342,15 +260,15 @@ class NIRReference:
     ``step(obs)`` returns the window (raster, counts) and the action; ``predict`` the action.
     """
 
-    def __init__(self, nir_path: str | Path, mode: str = "float32", seed: int = 0) -> None:
-        if mode not in REFERENCE_MODES:
-            raise ValueError(f"unknown mode {mode!r}; choose one of {', '.join(REFERENCE_MODES)}")
+    name = "nir-ref"
+
+    def __init__(self, nir_path: str | Path, arithmetic: str = "float32", seed: int = 0) -> None:
+        self.arithmetic: Arithmetic = check_arithmetic(arithmetic)
         self.chain, self.manifest = load_chain(nir_path)
-        self.mode = mode
-        fixed = quantize(self.chain) if mode == "fixed" else None
+        fixed = quantize(self.chain) if arithmetic == "fixed" else None
         self.fixed = fixed
-        self.codec = HostCodec(self.chain, self.manifest, mode, fixed, seed)
-        self.sim = ChainSimulator(self.chain, self.manifest.num_steps, mode, fixed)
+        self.codec = HostCodec(self.chain, self.manifest, arithmetic, fixed, seed)
+        self.sim = ChainSimulator(self.chain, self.manifest.num_steps, arithmetic, fixed)
         self.T = self.manifest.num_steps
         self.counts = SpikeCounts(len(self.chain.layers))
 
@@ -374,9 +292,18 @@ class NIRReference:
     def predict(self, obs: np.ndarray) -> Any:
         return self.codec.decode(self.readout(obs))
 
+    def close(self) -> None:
+        """Nothing to stop: the reference runs in this process."""
+
+    def __enter__(self) -> NIRReference:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
 
 __all__ = [
-    "REFERENCE_MODES",
+    "ARITHMETICS",
     "ChainSimulator",
     "ManifestError",
     "NIRFileError",

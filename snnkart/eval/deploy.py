@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from snnkart import faults
-from snnkart.backends.reference import NIRReference, SpikeCounts, WindowResult
+from snnkart.backends.base import BACKENDS, SpikeCounts, SpikingBackend, WindowResult, open_backend
+from snnkart.backends.reference import NIRReference
 from snnkart.contract.manifest import Manifest, ManifestError
 from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.errors import DeployError, DeployWriteError, ParityError
@@ -35,7 +36,6 @@ from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
 from snnkart.io import write_json
 
 DEPLOY_SCHEMA = "snnkart/deploy/v1"
-BACKENDS = ("lava-sim", "nir-ref")
 
 
 def check_writable(out_dir: Path) -> None:
@@ -204,14 +204,14 @@ class CheckedPredictor:
 
     def __init__(
         self,
-        primary: Any,
+        primary: SpikingBackend,
         exact: NIRReference | None,
         float32: NIRReference | None,
     ) -> None:
         self.primary = primary
         self.exact = exact
         self.float32 = float32
-        self.parity = Parity(exact_reference=None if exact is None else exact.mode)
+        self.parity = Parity(exact_reference=None if exact is None else exact.arithmetic)
         self.step_seconds = 0.0
         self.episode, self.episode_step = -1, 0  # where the first parity mismatch happened
 
@@ -281,28 +281,23 @@ def _counts_delta(now: SpikeCounts, before: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def open_backend(
+def open_backends(
     nir_path: Path, backend: str, precision: str, seed: int
-) -> tuple[Any, NIRReference | None, NIRReference | None]:
-    """The predictor for ``backend`` and its same-arithmetic and float32 references."""
-    if backend == "lava-sim":
-        from snnkart.backends.lava_sim import LavaSimPredictor
-
-        if precision not in ("float", "fixed"):
-            raise DeployError(f"--precision for lava-sim is float or fixed, not {precision!r}")
-        exact_mode = "float64" if precision == "float" else "fixed"
-        exact = NIRReference(nir_path, exact_mode, seed=seed)
-        float32 = NIRReference(nir_path, "float32", seed=seed)
-        return LavaSimPredictor(nir_path, precision, seed=seed), exact, float32
-    if backend == "nir-ref":
-        mode = {"float": "float64"}.get(precision, precision)
-        if mode not in ("float32", "float64", "fixed"):
-            raise DeployError(
-                f"--precision for nir-ref is float32, float64 (or float) or fixed, not {precision!r}"
-            )
-        shadow = None if mode == "float32" else NIRReference(nir_path, "float32", seed=seed)
-        return NIRReference(nir_path, mode, seed=seed), None, shadow
-    raise DeployError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+) -> tuple[SpikingBackend, NIRReference | None, NIRReference | None]:
+    """The backend, its same-arithmetic reference (None for the reference itself) and the
+    float32 reference (None when the backend is the float32 reference)."""
+    primary = open_backend(nir_path, backend, precision, seed)
+    try:
+        exact = None
+        if backend != "nir-ref":
+            exact = NIRReference(nir_path, primary.arithmetic, seed=seed)
+        float32 = None
+        if primary.arithmetic != "float32" or backend != "nir-ref":
+            float32 = NIRReference(nir_path, "float32", seed=seed)
+    except BaseException:
+        primary.close()
+        raise
+    return primary, exact, float32
 
 
 def run_deploy(
@@ -335,9 +330,8 @@ def run_deploy(
         stack.callback(gym_env.close)
         stack.enter_context(faults.caught())  # entered after gym_env.close: exits before it
         t0 = time.perf_counter()
-        primary, exact, float32 = open_backend(nir_path, backend, precision, seed)
-        if hasattr(primary, "close"):
-            stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
+        primary, exact, float32 = open_backends(nir_path, backend, precision, seed)
+        stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
         startup = time.perf_counter() - t0
         checked = CheckedPredictor(primary, exact, float32)
         per_episode: list[dict[str, Any]] = []
@@ -360,7 +354,7 @@ def run_deploy(
     record = {
         "schema": DEPLOY_SCHEMA,
         "backend": backend,
-        "precision": precision if backend == "lava-sim" else getattr(primary, "mode", precision),
+        "precision": precision if backend == "lava-sim" else primary.arithmetic,
         "nir_file": str(nir_path),
         "manifest": {
             "num_steps": manifest.num_steps,
@@ -389,9 +383,7 @@ def run_deploy(
             "wall_s": wall,
             "ms_per_env_step": 1000 * checked.step_seconds / max(steps, 1),
         },
-        "quantization": None
-        if getattr(primary, "fixed", None) is None
-        else primary.fixed.describe(),
+        "quantization": None if primary.fixed is None else primary.fixed.describe(),
         "machine": {"python": platform.python_version(), "machine": platform.machine()},
         "versions": manifest.versions,
         "episodes": per_episode,
