@@ -48,8 +48,8 @@ def check_exportable(policy: Any) -> None:
             f"only spiking policies can be exported to NIR for Lava; this run trained a "
             f"{getattr(policy, 'kind', type(policy).__name__).upper()} policy"
         )
-    for name in ("lif1", "lif2"):
-        lif = getattr(policy.snn, name)
+    for i, lif in enumerate(policy.snn.lifs, start=1):
+        name = f"lif{i}"
         # The buffer, not the string attribute, is what forward() uses and a state dict sets.
         if int(lif.reset_mechanism_val) != 1:
             mechanism = {0: "subtract", 1: "zero", 2: "none"}.get(int(lif.reset_mechanism_val))
@@ -84,21 +84,15 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
     check_exportable(policy)
     assert isinstance(policy, SNNPolicy)
     actor = policy.snn
-    sizes = (actor.fc1.out_features, actor.fc2.out_features)
-    betas = [
-        float(lif.beta.detach().reshape(-1)[0].clamp(0, 1)) for lif in (actor.lif1, actor.lif2)
-    ]
-    thresholds = [float(lif.threshold.detach().reshape(-1)[0]) for lif in (actor.lif1, actor.lif2)]
-    net = torch.nn.Sequential(
-        actor.fc1,
-        _leaky(sizes[0], betas[0], thresholds[0]),
-        actor.fc2,
-        _leaky(sizes[1], betas[1], thresholds[1]),
-        actor.readout,
-    ).eval()
+    layers = _layer_specs(actor)
+    # The converter map: fc_i -> Affine "2(i-1)", lif_i -> LIF "2i-1", readout -> Affine "2K".
+    modules: list[torch.nn.Module] = []
+    for fc, spec in zip(actor.fcs, layers, strict=True):
+        modules += [fc, _leaky(spec.size, spec.beta, spec.threshold)]
+    net = torch.nn.Sequential(*modules, actor.readout).eval()
     with torch.no_grad():
-        graph = export_to_nir(net, torch.zeros(actor.fc1.in_features))
-    _check_graph(graph, sizes, betas, thresholds)
+        graph = export_to_nir(net, torch.zeros(actor.fcs[0].in_features))
+    _check_graph(graph, layers, readout_node=str(2 * len(layers)))
 
     out = Path(out)
     cfg = run.config
@@ -109,17 +103,14 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
         nir_file=out.name,
         nir_dt=NIR_DT,
         num_steps=cfg.snn.num_steps,
-        layers=(
-            LayerSpec("1", sizes[0], betas[0], thresholds[0]),
-            LayerSpec("3", sizes[1], betas[1], thresholds[1]),
-        ),
+        layers=layers,
         encoding=cfg.snn.encoding,
         obs_mean=tuple(float(x) for x in rms.mean),
         obs_std=tuple(float(x) for x in obs_std(rms.var)),
         obs_clip=cfg.ppo.clip_obs,
         obs_low=tuple(float(x) for x in policy.obs_low),
         obs_high=tuple(float(x) for x in (policy.obs_low + policy.obs_span)),
-        readout_node="4",
+        readout_node=str(2 * len(layers)),
         action_mode=cfg.action_mode,
         env={**spec, "env_spec_hash": spec_hash(spec)},
         versions=versions(),
@@ -141,20 +132,34 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
     return out, mpath
 
 
-def _check_graph(graph: Any, sizes: tuple[int, int], betas: list[float], thr: list[float]) -> None:
+def _layer_specs(actor: Any) -> tuple[LayerSpec, ...]:
+    """Each spiking layer's NIR node name (``2i - 1`` in the exported chain), size, decay and
+    threshold (one per population, as Lava's LIF has)."""
+    return tuple(
+        LayerSpec(
+            str(2 * i + 1),
+            fc.out_features,
+            float(lif.beta.detach().reshape(-1)[0].clamp(0, 1)),
+            float(lif.threshold.detach().reshape(-1)[0]),
+        )
+        for i, (fc, lif) in enumerate(zip(actor.fcs, actor.lifs, strict=True))
+    )
+
+
+def _check_graph(graph: Any, layers: tuple[LayerSpec, ...], readout_node: str) -> None:
     """The exported graph must be the expected chain with reset-to-zero LIF vectors."""
     import nir
 
-    expected = {"input": nir.Input, "0": nir.Affine, "1": nir.LIF, "2": nir.Affine,
-                "3": nir.LIF, "4": nir.Affine, "output": nir.Output}  # fmt: skip
+    expected: dict[str, Any] = {"input": nir.Input, "output": nir.Output, readout_node: nir.Affine}
+    for spec in layers:
+        expected[spec.node] = nir.LIF
+        expected[str(int(spec.node) - 1)] = nir.Affine
     for name, kind in expected.items():
         node = graph.nodes.get(name)
         if not isinstance(node, kind):
             raise ExportError(f"unexpected NIR graph from snntorch: node {name!r} is {node!r}")
-    for name, size, beta, th in (
-        ("1", sizes[0], betas[0], thr[0]),
-        ("3", sizes[1], betas[1], thr[1]),
-    ):
+    for spec in layers:
+        name, size, beta, th = spec.node, spec.size, spec.beta, spec.threshold
         node = graph.nodes[name]
         if node.tau.shape != (size,) or not np.all(node.v_reset == 0):
             raise ExportError(f"NIR LIF {name}: expected {size} neurons resetting to 0")

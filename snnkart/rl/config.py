@@ -12,7 +12,14 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import gymnasium as gym
 import tomli_w
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from snnkart.envs import resolve_env_name
 from snnkart.envs.spec import make_env
@@ -65,11 +72,17 @@ class ANNConfig(_Section):
     hidden: tuple[int, ...] = (128, 128)
 
 
+MAX_SPIKING_LAYERS = 3
+"""The spiking layers an actor may have (the export and both backends map 1 to 3)."""
+
+
 class SNNConfig(_Section):
-    """Spiking actor: encoding, two LIF layers, linear readout of mean spike counts."""
+    """Spiking actor: encoding, one to three LIF layers, linear readout of mean spike counts."""
 
     num_steps: int = Field(8, ge=1, description="T: SNN time steps per env step")
-    hidden: tuple[int, int] = (64, 64)
+    hidden: tuple[int, ...] = Field(
+        (64, 64), description="sizes of the spiking layers: 1 to 3 layers, e.g. [64, 64]"
+    )
     beta: float = Field(0.9, ge=0.0, lt=1.0, description="membrane decay per SNN step")
     threshold: float = Field(1.0, gt=0.0)
     learn_beta: bool = False
@@ -81,6 +94,16 @@ class SNNConfig(_Section):
         2.0, gt=0.0, description="scale of the spiking layers' initial weights"
     )
     fused: bool = Field(True, description="use the fused LIF kernel in training (tested equal)")
+
+    @field_validator("hidden")
+    @classmethod
+    def _one_to_three_layers(cls, hidden: tuple[int, ...]) -> tuple[int, ...]:
+        if not 1 <= len(hidden) <= MAX_SPIKING_LAYERS or min(hidden) < 1:
+            raise ValueError(
+                f"snn.hidden must list 1 to {MAX_SPIKING_LAYERS} layer sizes >= 1, got "
+                f"{list(hidden)}"
+            )
+        return hidden
 
 
 class RunConfig(_Section):

@@ -149,24 +149,24 @@ class SpikingActor(nn.Module):
         super().__init__()
         self.cfg = cfg
         self.T = cfg.num_steps
-        h1, h2 = cfg.hidden
-        self.fc1 = nn.Linear(n_in, h1)
-        self.fc2 = nn.Linear(h1, h2)
-        self.readout = layer_init(nn.Linear(h2, n_out), std=0.01)
+        sizes = (n_in, *cfg.hidden)
+        # Layers are attributes fc1, lif1, fc2, lif2, ... (the state-dict keys of every
+        # checkpoint written so far); ``fcs`` and ``lifs`` list them in order.
+        for i, (a, b) in enumerate(itertools.pairwise(sizes), start=1):
+            setattr(self, f"fc{i}", nn.Linear(a, b))
+        self.readout = layer_init(nn.Linear(sizes[-1], n_out), std=0.01)
+        self.fcs: list[nn.Linear] = [getattr(self, f"fc{i}") for i in range(1, len(sizes))]
         with torch.no_grad():
-            for fc in (self.fc1, self.fc2):
+            for fc in self.fcs:
                 fc.weight.mul_(cfg.init_gain)
         grad = surrogate.fast_sigmoid(slope=cfg.surrogate_slope)
-        self.lif1 = snn.Leaky(
-            beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
-            spike_grad=grad, reset_mechanism="zero", reset_delay=False,
-            learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
-        )  # fmt: skip
-        self.lif2 = snn.Leaky(
-            beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
-            spike_grad=grad, reset_mechanism="zero", reset_delay=False,
-            learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
-        )  # fmt: skip
+        for i in range(1, len(sizes)):
+            setattr(self, f"lif{i}", snn.Leaky(
+                beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
+                spike_grad=grad, reset_mechanism="zero", reset_delay=False,
+                learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
+            ))  # fmt: skip
+        self.lifs: list[snn.Leaky] = [getattr(self, f"lif{i}") for i in range(1, len(sizes))]
 
     def encode(self, obs01: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         """Rate encoding: Bernoulli spike trains ``[B, T, n_in]`` with p = obs01."""
@@ -176,32 +176,34 @@ class SpikingActor(nn.Module):
     def forward(
         self, obs01: torch.Tensor, input_spikes: torch.Tensor | None = None, fused: bool = False
     ) -> tuple[torch.Tensor, torch.Tensor, list[torch.Tensor]]:
-        """Returns (readout output, mean firing rate per layer ``[2]``, spike records)."""
+        """Returns (readout output, mean firing rate per layer, spike records ``[T, B, n]``)."""
         B = obs01.shape[0]
         if self.cfg.encoding == "rate":
             if input_spikes is None:
                 input_spikes = self.encode(obs01)
-            cur1 = self.fc1(input_spikes).transpose(0, 1)  # [T, B, h1]
+            current = self.fcs[0](input_spikes).transpose(0, 1)  # [T, B, h1]
         else:
-            cur1 = self.fc1(obs01).unsqueeze(0).expand(self.T, -1, -1)
-        beta1, thr1 = self.lif1.beta, self.lif1.threshold
-        beta2, thr2 = self.lif2.beta, self.lif2.threshold
+            current = self.fcs[0](obs01).unsqueeze(0).expand(self.T, -1, -1)
+        spikes: list[torch.Tensor] = []
         if fused:
-            spk1 = fused_lif_layer(cur1, beta1, thr1, self.cfg.surrogate_slope)
-            spk2 = fused_lif_layer(self.fc2(spk1), beta2, thr2, self.cfg.surrogate_slope)
+            for i, lif in enumerate(self.lifs):
+                if i > 0:
+                    current = self.fcs[i](spikes[-1])
+                spikes.append(
+                    fused_lif_layer(current, lif.beta, lif.threshold, self.cfg.surrogate_slope)
+                )
         else:
-            mem1 = torch.zeros(B, cur1.shape[-1])
-            mem2 = torch.zeros(B, self.fc2.out_features)
-            s1, s2 = [], []
+            mems = [torch.zeros(B, fc.out_features) for fc in self.fcs]
+            steps: list[list[torch.Tensor]] = [[] for _ in self.lifs]
             for t in range(self.T):
-                a, mem1 = self.lif1(cur1[t], mem1)
-                b, mem2 = self.lif2(self.fc2(a), mem2)
-                s1.append(a)
-                s2.append(b)
-            spk1, spk2 = torch.stack(s1), torch.stack(s2)
-        out = self.readout(spk2.mean(0))
-        rates = torch.stack([spk1.mean(), spk2.mean()])
-        return out, rates, [spk1, spk2]
+                a = current[t]
+                for i, lif in enumerate(self.lifs):
+                    a, mems[i] = lif(a if i == 0 else self.fcs[i](a), mems[i])
+                    steps[i].append(a)
+            spikes = [torch.stack(s) for s in steps]
+        out = self.readout(spikes[-1].mean(0))
+        rates = torch.stack([s.mean() for s in spikes])
+        return out, rates, spikes
 
 
 class SNNPolicy(ActorCritic):
@@ -255,7 +257,7 @@ class SNNPolicy(ActorCritic):
 
     def clamp_parameters(self) -> None:
         with torch.no_grad():
-            for lif in (self.snn.lif1, self.snn.lif2):
+            for lif in self.snn.lifs:
                 lif.beta.clamp_(0.0, BETA_MAX)
                 lif.threshold.clamp_(min=THRESHOLD_MIN)
 
