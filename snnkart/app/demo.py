@@ -3,18 +3,19 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, cast
+from typing import cast
 
 from snnkart.app.reporter import Reporter
 from snnkart.envs.base import KartEnv
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.errors import UsageError
+from snnkart.eval.episodes import EpisodeResult
 from snnkart.eval.video import video_writer
 
 
 def scripted_gif(
     env_name: str, track: str, out: str | Path, reporter: Reporter, seed: int = 0, every: int = 3
-) -> dict[str, Any]:
+) -> EpisodeResult:
     """Drive one episode with :class:`~snnkart.eval.drivers.ScriptedDriver` and save every
     ``every``-th frame as a GIF at real-time speed. Returns the episode summary."""
     from snnkart.envs import make

@@ -97,7 +97,7 @@ def demo(
             result = render_gif("steer", "small_S", scripted_gif, ConsoleReporter())
         except SnnkartError as exc:
             _fail(str(exc))
-        status = "finished" if result["lap_finished"] else "did not finish"
+        status = "finished" if result.finished else "did not finish"
         typer.echo(f"scripted driver on steer/small_S: {status}; GIF written to {scripted_gif}")
         return
     if steps < 1 or lava_episodes < 1 or eval_episodes < 1:

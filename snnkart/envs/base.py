@@ -100,6 +100,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     _last_terms: dict[str, float]
     _episode_return: float
     env_name: ClassVar[str] = "kart"
+    discrete_actions: ClassVar[int] = 0  # the size of the discrete action space
     egocentric: ClassVar[bool] = True
 
     def __init__(
@@ -173,7 +174,10 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     # -- subclass interface ---------------------------------------------------------------------
 
     def _make_action_space(self) -> spaces.Space[Any]:
-        raise NotImplementedError
+        """``Discrete(discrete_actions)``, or a 2-vector in [-1, 1] (continuous)."""
+        if self.action_mode == "discrete":
+            return spaces.Discrete(self.discrete_actions)
+        return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
 
     def _kinematic_fields(self) -> tuple[ObsField, ...]:
         raise NotImplementedError

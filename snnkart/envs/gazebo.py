@@ -6,7 +6,6 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
 
 from snnkart.envs.base import KartEnv, ObsField
 from snnkart.envs.config import GazeboConfig
@@ -65,13 +64,9 @@ class GazeboEnv(KartEnv[GazeboConfig]):
 
     config_class = GazeboConfig
     env_name = "gazebo"
+    discrete_actions = 5
     egocentric = True
     ACTION_NAMES: ClassVar[tuple[str, ...]] = ("none", "accelerate", "brake", "left", "right")
-
-    def _make_action_space(self) -> spaces.Space[Any]:
-        if self.action_mode == "discrete":
-            return spaces.Discrete(5)
-        return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
 
     def _kinematic_fields(self) -> tuple[ObsField, ...]:
         return (

@@ -6,14 +6,14 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
 
 from snnkart.envs.base import KartEnv, ObsField
 from snnkart.envs.config import GridConfig
 from snnkart.envs.constants import PIXELS_PER_METRE
 
 # World directions of the discrete actions (x right, y down).
-_DIRECTIONS = ((0.0, 0.0), (0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0))
+DIRECTIONS = ((0.0, 0.0), (0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0))
+"""The discrete actions' unit impulses (x, y): none, up (-y), down (+y), left, right."""
 
 
 class GridEnv(KartEnv[GridConfig]):
@@ -65,13 +65,9 @@ class GridEnv(KartEnv[GridConfig]):
 
     config_class = GridConfig
     env_name = "grid"
+    discrete_actions = 5
     egocentric = False
     ACTION_NAMES: ClassVar[tuple[str, ...]] = ("none", "up", "down", "left", "right")
-
-    def _make_action_space(self) -> spaces.Space[Any]:
-        if self.action_mode == "discrete":
-            return spaces.Discrete(5)
-        return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
 
     def _kinematic_fields(self) -> tuple[ObsField, ...]:
         return (
@@ -87,9 +83,19 @@ class GridEnv(KartEnv[GridConfig]):
         self._vmax = p.max_speed_m_s * PIXELS_PER_METRE
         self._drag = p.drag_per_step
 
+    @property
+    def velocity_px(self) -> tuple[float, float]:
+        """The velocity (px per step) the next action adds its impulse to."""
+        return self._vx, self._vy
+
+    @property
+    def impulse_px(self) -> float:
+        """The velocity change (px per step) of a full action."""
+        return self._impulse
+
     def _apply_action(self, action: Any) -> None:
         if self.action_mode == "discrete":
-            ux, uy = _DIRECTIONS[int(action)]
+            ux, uy = DIRECTIONS[int(action)]
         else:
             ux, uy = (float(a) for a in np.clip(action, -1.0, 1.0))
             norm = math.hypot(ux, uy)

@@ -6,7 +6,6 @@ import math
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
 
 from snnkart.envs.base import KartEnv, ObsField
 from snnkart.envs.config import SteerConfig
@@ -66,15 +65,11 @@ class SteerEnv(KartEnv[SteerConfig]):
 
     config_class = SteerConfig
     env_name = "steer"
+    discrete_actions = 9
     egocentric = True
     ACTION_NAMES: ClassVar[tuple[str, ...]] = tuple(
         f"{t}+{s}" for t in ("brake", "coast", "throttle") for s in ("left", "straight", "right")
     )
-
-    def _make_action_space(self) -> spaces.Space[Any]:
-        if self.action_mode == "discrete":
-            return spaces.Discrete(9)
-        return spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
 
     def _kinematic_fields(self) -> tuple[ObsField, ...]:
         return (

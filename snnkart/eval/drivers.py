@@ -15,6 +15,8 @@ import numpy as np
 from snnkart.envs.base import KartEnv
 from snnkart.envs.constants import PIXELS_PER_METRE
 from snnkart.envs.geometry import nearest_point, point_distance
+from snnkart.envs.grid import DIRECTIONS
+from snnkart.eval.episodes import EpisodeResult, run_episodes
 
 
 class PathFollower:
@@ -83,6 +85,10 @@ class ScriptedDriver:
     def reset(self) -> None:
         self.follower = PathFollower(self.env, lookahead_px=self.follower.lookahead)
 
+    def predict(self, obs: Any) -> Any:
+        """The :class:`~snnkart.eval.episodes.Predictor` interface: acts on its env's state."""
+        return self.act(self.env)
+
     def act(self, env: KartEnv | None = None) -> Any:
         env = env or self.env
         pos = env.position
@@ -99,14 +105,13 @@ class ScriptedDriver:
         x, y = env.position
         d = math.hypot(tx - x, ty - y) or 1.0
         goal = np.array([tx - x, ty - y]) / d * speed_goal * PIXELS_PER_METRE
-        v = np.array([env._vx, env._vy])
-        impulse = env._impulse
+        v = np.array(env.velocity_px)
+        impulse = env.impulse_px
         if env.action_mode == "continuous":
             a = (goal - v) / impulse
             n = float(np.linalg.norm(a))
             return (a / max(n, 1.0)).astype(np.float32)
-        options = [(0.0, 0.0), (0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0)]
-        errors = [np.linalg.norm(v + impulse * np.array(o) - goal) for o in options]
+        errors = [np.linalg.norm(v + impulse * np.array(o) - goal) for o in DIRECTIONS]
         return int(np.argmin(errors))
 
     def _gazebo(self, env: Any, tx: float, ty: float, speed_goal: float) -> Any:
@@ -144,18 +149,7 @@ class ScriptedDriver:
 
 
 def drive_episode(
-    env: KartEnv, seed: int | None = None, driver: ScriptedDriver | None = None, on_step: Any = None
-) -> dict[str, Any]:
-    """Run one episode with the scripted driver; return the final info plus return and length."""
-    driver = driver or ScriptedDriver(env)
-    driver.reset()
-    env.reset(seed=seed)
-    total, steps = 0.0, 0
-    while True:
-        _, reward, terminated, truncated, info = env.step(driver.act(env))
-        total += reward
-        steps += 1
-        if on_step is not None:
-            on_step(env)
-        if terminated or truncated:
-            return {**info, "return": total, "length": steps, "truncated": truncated}
+    env: KartEnv, seed: int = 0, driver: ScriptedDriver | None = None, on_step: Any = None
+) -> EpisodeResult:
+    """Run one seeded episode with the scripted driver (the shared episode loop)."""
+    return run_episodes(env, driver or ScriptedDriver(env), 1, seed, on_step=on_step)[0]
