@@ -1,0 +1,125 @@
+"""The env a deployed policy runs in: the track (embedded in its manifest, or another one
+named with ``--track``) and the env its manifest describes, checked to fit the policy."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from snnkart.contract.manifest import Manifest
+from snnkart.envs.tracks import Track, track_label, track_sha256
+from snnkart.errors import DeployError
+
+
+@dataclass(frozen=True)
+class TrackChoice:
+    """The track a policy runs on, and whether it is the one it was trained on."""
+
+    track: Track
+    given: str  # how the user named it, or how the training run named it if embedded
+    source: str  # "--track", "embedded" (in the manifest) or "name" (a v1 manifest's)
+    trained: dict[str, str]  # name, given and sha256 of the trained track
+
+    @property
+    def override(self) -> bool:
+        return track_sha256(self.track) != self.trained.get("sha256")
+
+    @property
+    def label(self) -> str:
+        label = track_label(self.track.name, self.given)
+        return label[:-1] + ", embedded)" if self.source == "embedded" and "(" in label else label
+
+    def record(self) -> dict[str, Any]:
+        return {
+            "track": self.track.name,
+            "track_given": self.given,
+            "track_source": self.source,
+            "track_sha256": track_sha256(self.track),
+            "trained_track": self.trained,
+            "track_override": self.override,
+        }
+
+
+def resolve_track(manifest: Manifest, track: str | None) -> TrackChoice:
+    """``--track`` if given (any track: evaluating elsewhere is a real use), else the track
+    embedded in the manifest, else (v1 manifests) the track the manifest names."""
+    from snnkart.envs.tracks import TrackError, embedded_track, load_track
+
+    spec = manifest.env
+    if manifest.track:
+        trained = {k: manifest.track[k] for k in ("name", "given", "sha256")}
+    else:
+        trained = {"name": spec.get("track", "small_S"), "sha256": spec.get("track_sha256", "")}
+    if track is not None:
+        try:
+            return TrackChoice(load_track(track), str(track), "--track", trained)
+        except TrackError as exc:
+            raise DeployError(f"--track: {exc}") from exc
+    if manifest.track:
+        try:
+            chosen = embedded_track(manifest.track, "the manifest")
+        except TrackError as exc:
+            raise DeployError(str(exc)) from exc
+        return TrackChoice(chosen, manifest.track["given"], "embedded", trained)
+    name = trained["name"]
+    try:
+        return TrackChoice(load_track(name), name, "name", trained)
+    except TrackError as exc:
+        raise DeployError(
+            f"the manifest ({manifest.schema}, written before tracks were embedded) names track "
+            f"{name!r}, which is neither built in nor a file here; pass --track with its file, "
+            "or export the run again"
+        ) from exc
+
+
+def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | None) -> Any:
+    """The env the manifest describes (optionally another track or env), checked to fit;
+    ``track`` None: the manifest's own (see :func:`resolve_track`)."""
+    from snnkart.envs import ENV_IDS, make, resolve_env_name
+    from snnkart.envs.base import revision_mismatch
+    from snnkart.envs.tracks import TrackError
+
+    spec = manifest.env
+    mismatch = revision_mismatch(spec.get("revision"))
+    if mismatch:
+        raise DeployError(
+            f"the policy was exported from a run on {mismatch}; retrain the run and export it again"
+        )
+    name = env or spec.get("env")
+    if name is None:
+        raise DeployError("the manifest names no env; pass --env")
+    try:
+        resolved = resolve_env_name(str(name))
+    except ValueError as exc:
+        where = "--env" if env else "the manifest's env"
+        raise DeployError(f"{where}: {exc}") from exc
+    if resolved not in ENV_IDS:
+        raise DeployError(f"unknown env {name!r}")
+    if track is None or isinstance(track, str):
+        track = resolve_track(manifest, track).track
+    kwargs: dict[str, Any] = {
+        "track": track,
+        "action_mode": spec.get("action_mode", manifest.action_mode),
+    }
+    if spec.get("env_config") and resolved == spec.get("env"):
+        kwargs["config"] = spec["env_config"]
+    try:
+        gym_env = make(resolved, **kwargs)
+    except (TrackError, ValueError, TypeError) as exc:
+        raise DeployError(f"cannot make env {resolved!r}: {exc}") from exc
+    obs_dim = int(np.prod(gym_env.observation_space.shape or (0,)))
+    if obs_dim != manifest.obs_dim:
+        gym_env.close()
+        raise DeployError(
+            f"the policy takes {manifest.obs_dim} observation values but env {resolved!r} "
+            f"observes {obs_dim}; deploy it on the env it was trained on ({spec.get('env')})"
+        )
+    if spec.get("action_space") and str(gym_env.action_space) != spec["action_space"]:
+        gym_env.close()
+        raise DeployError(
+            f"the policy acts in {spec['action_space']} but env {resolved!r} expects "
+            f"{gym_env.action_space}"
+        )
+    return gym_env
