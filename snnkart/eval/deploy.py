@@ -26,7 +26,7 @@ from typing import Any
 
 from snnkart import faults
 from snnkart.backends.base import BACKENDS, SpikeCounts
-from snnkart.contract.manifest import ManifestError
+from snnkart.contract.manifest import Manifest, ManifestError
 from snnkart.envs.tracks import track_label
 from snnkart.errors import DeployError, DeployWriteError, ParityError
 from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
@@ -88,13 +88,7 @@ def run_deploy(
         "backend": backend,
         "precision": precision if backend == "lava-sim" else primary.arithmetic,
         "nir_file": str(nir_path),
-        "manifest": {
-            "num_steps": manifest.num_steps,
-            "encoding": manifest.encoding,
-            "layers": [asdict(layer) for layer in manifest.layers],
-            "action_mode": manifest.action_mode,
-            "training": manifest.training,
-        },
+        "manifest": _manifest_summary(manifest),
         "env": {
             "env": gym_env.unwrapped.env_name,
             **choice.record(),
@@ -162,6 +156,16 @@ class _Run:
             },
             "quantization": None if primary.fixed is None else primary.fixed.describe(),
         }
+
+
+def _manifest_summary(manifest: Manifest) -> dict[str, Any]:
+    return {
+        "num_steps": manifest.num_steps,
+        "encoding": manifest.encoding,
+        "layers": [asdict(layer) for layer in manifest.layers],
+        "action_mode": manifest.action_mode,
+        "training": manifest.training,
+    }
 
 
 def _write(path: Path, record: dict[str, Any]) -> None:
