@@ -35,14 +35,13 @@ LONG_FUNCTIONS = {
     "snnkart/envs/base.py::__init__": 67,
     "snnkart/cli/play.py::run_play": 67,
     "snnkart/envs/tracks.py::parse_track": 66,
-    "snnkart/cli/main.py::eval_": 61,
 }
 
 
 def test_modules_and_functions_stay_short() -> None:
     import ast
 
-    too_long = []
+    too_long, lengths = [], {}
     for path in sorted((ROOT / "snnkart").rglob("*.py")):
         rel = path.relative_to(ROOT).as_posix()
         text = path.read_text()
@@ -52,7 +51,11 @@ def test_modules_and_functions_stay_short() -> None:
         for node in ast.walk(ast.parse(text)):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 length = (node.end_lineno or node.lineno) - node.lineno + 1
+                lengths[f"{rel}::{node.name}"] = max(length, lengths.get(f"{rel}::{node.name}", 0))
                 limit = LONG_FUNCTIONS.get(f"{rel}::{node.name}", FUNCTION_LINES)
                 if length > limit:
                     too_long.append(f"{rel}::{node.name}: {length} lines (limit {limit})")
     assert not too_long, "split these:\n" + "\n".join(too_long)
+    # an exception that is no longer needed comes off the list, so the list only shrinks
+    stale = [k for k in LONG_FUNCTIONS if lengths.get(k, 0) <= FUNCTION_LINES]
+    assert not stale, f"within the limit now; remove from LONG_FUNCTIONS: {stale}"

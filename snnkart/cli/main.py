@@ -8,12 +8,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import Annotated, NoReturn, TypeVar
 
 import typer
 
 from snnkart.cli.console import ConsoleReporter
 from snnkart.errors import SnnkartError
+
+T = TypeVar("T")
 
 app = typer.Typer(
     name="snnkart",
@@ -104,16 +106,11 @@ def demo(
         _fail("--steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
     from snnkart.app.pipeline import run_pipeline
-    from snnkart.errors import ParityError
 
-    try:
-        finished = run_pipeline(out, ConsoleReporter(), steps, lava_episodes, eval_episodes)
-    except KeyboardInterrupt as exc:
-        _interrupted(exc, "run the same command again to continue where it stopped")
-    except ParityError as exc:
-        _fail(str(exc), code=4)
-    except SnnkartError as exc:
-        _fail(str(exc))
+    finished = _guard(
+        lambda: run_pipeline(out, ConsoleReporter(), steps, lava_episodes, eval_episodes),
+        "run the same command again to continue where it stopped",
+    )
     if not finished:
         raise typer.Exit(128 + (faults.last_signal or 2))
 
@@ -223,32 +220,24 @@ def eval_(
     if episodes < 1:
         _fail(f"--episodes must be >= 1, got {episodes}")
     if backend != "torch":
-        _guard_deploy(
+        reporter = ConsoleReporter()
+        _guard(
             lambda: run_eval_exported(
-                run_dir,
-                backend,
-                precision,
-                episodes,
-                seed,
-                checkpoint,
-                out,
-                ConsoleReporter(),
-                env,
-                track,
+                run_dir, backend, precision, episodes, seed, checkpoint, out, reporter, env, track
             ),
-            backend,
+            _deploy_interrupted(backend),
         )
         return
     if run_dir.suffix == ".nir":
         _fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:
         _fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
-    try:
-        run_eval(run_dir, episodes, seed, checkpoint, render, video, out, ConsoleReporter(), track)
-    except KeyboardInterrupt as exc:
-        _interrupted(exc, "no results were written")
-    except SnnkartError as exc:
-        _fail(str(exc))
+    _guard(
+        lambda: run_eval(
+            run_dir, episodes, seed, checkpoint, render, video, out, ConsoleReporter(), track
+        ),
+        "no results were written",
+    )
 
 
 @app.command()
@@ -265,10 +254,7 @@ def replay(
     """Replay the episodes recorded during training, several karts at once."""
     from snnkart.app.replay import run_replay
 
-    try:
-        run_replay(run_dir, mode, out, every, ConsoleReporter())
-    except SnnkartError as exc:
-        _fail(str(exc))
+    _guard(lambda: run_replay(run_dir, mode, out, every, ConsoleReporter()))
 
 
 @app.command()
@@ -294,20 +280,28 @@ def export(
     typer.echo(f"NIR graph written to {nir_path}\nmanifest written to {manifest}")
 
 
-def _guard_deploy(run: Callable[[], object], backend: str) -> None:
-    """Run a deploy-like workflow, turning its failures into the command's exit status: 4 for
-    a parity mismatch (its summary is already shown), 2 for bad input, 130/143 for Ctrl-C."""
+def _guard(call: Callable[[], T], interrupted: str | None = None) -> T:
+    """Run a workflow, turning its failures into the command's exit status: 2 for bad input
+    (``error: ...``), 4 for a parity mismatch (its summary is already shown), 130/143 for
+    Ctrl-C/SIGTERM with ``interrupted`` saying what was kept. Anything else is a bug and
+    propagates with its traceback."""
     from snnkart.errors import ParityError
 
     try:
-        run()
+        return call()
     except KeyboardInterrupt as exc:
-        stopped = "no Lava process is left running; " if backend == "lava-sim" else ""
-        _interrupted(exc, f"{stopped}no results were written")
+        if interrupted is None:
+            raise
+        _interrupted(exc, interrupted)
     except ParityError as exc:
         _fail(str(exc), code=4)
     except SnnkartError as exc:
         _fail(str(exc))
+
+
+def _deploy_interrupted(backend: str) -> str:
+    stopped = "no Lava process is left running; " if backend == "lava-sim" else ""
+    return f"{stopped}no results were written"
 
 
 @app.command()
@@ -336,11 +330,11 @@ def deploy(
         out = nir_file.parent / f"deploy-{backend}-{precision}"
     from snnkart.app.deploy import run_deploy_reported
 
-    _guard_deploy(
+    _guard(
         lambda: run_deploy_reported(
             nir_file, backend, precision, episodes, seed, env, track, out, ConsoleReporter()
         ),
-        backend,
+        _deploy_interrupted(backend),
     )
 
 
