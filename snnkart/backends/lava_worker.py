@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import os
 import pickle
-import queue
 import signal
 import struct
 import sys
@@ -33,6 +32,8 @@ import traceback
 from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
+
+from snnkart.backends import lava_compat
 
 if TYPE_CHECKING:
     from snnkart.backends.lava_params import LavaSpec
@@ -133,29 +134,9 @@ class LavaNetwork:
         self.windows = 0
         self.closed = False
 
-    def _check_actors(self) -> None:
-        for actor in self.runtime._messaging_infrastructure.actors:
-            if not actor.is_alive() or actor.exception:
-                exc = actor.exception
-                detail = exc[1] if exc else f"exit code {actor.exitcode}"
-                raise RuntimeError(f"a Lava process failed: {detail}")
-
     def _recv(self, timeout: float = RECV_TIMEOUT) -> np.ndarray:
         """Receive from the bridge, failing fast when a Lava process died or nothing comes."""
-        port = self.host_recv
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                port._queue.get(timeout=0.5)
-                break
-            except queue.Empty:
-                self._check_actors()
-                if time.monotonic() > deadline:
-                    raise RuntimeError(f"Lava produced no output for {timeout:.0f} s") from None
-        result = port._array[port._idx].copy()
-        port._idx = (port._idx + 1) % port._size
-        port._ack.release()
-        return result
+        return lava_compat.receive(self.host_recv, self.runtime, timeout)
 
     def window(self, current: np.ndarray) -> np.ndarray:
         msg = np.zeros(self.T * self.sizes[0] + 1, dtype=self.dtype)
@@ -174,24 +155,14 @@ class LavaNetwork:
         msg[-1] = 1
         self.host_send.send(msg)
         self.runtime.wait()  # receives REQ_STOP and stops the runtime
-        if self.runtime._is_started:
+        if lava_compat.is_started(self.runtime):
             self.runtime.stop()
 
 
 def abort(net: LavaNetwork | None) -> None:
     """Last resort after a failure: terminate this runtime's processes and shared memory."""
-    if net is None:
-        return
-    try:
-        infra = net.runtime._messaging_infrastructure
-        for actor in infra.actors:
-            if actor.is_alive():
-                actor.terminate()
-        for actor in infra.actors:
-            actor.join(timeout=2)
-        infra.smm.shutdown()
-    except Exception:
-        traceback.print_exc(file=sys.stderr)
+    if net is not None:
+        lava_compat.terminate(net.runtime)
 
 
 def main() -> int:
