@@ -56,68 +56,46 @@ from snnkart.contract.manifest import Manifest, ManifestError, manifest_path
 from snnkart.errors import NIRFileError
 
 
-class ChainSimulator:
-    """Executes a chain's spiking layers, one window per env step, in one arithmetic.
+class _Simulator:
+    """A chain's spiking layers in one arithmetic: ``window(current)`` takes the first layer's
+    input current ``[T, n1]`` (from :class:`HostCodec`) and returns the window's raster."""
 
-    ``window(current)`` takes the first layer's input current ``[T, n1]`` (from
-    :class:`HostCodec`) and returns the raster of the window. The Lava arithmetics keep their
-    state across windows (Dense buffers, the Lava time step), as Lava does.
-    """
+    arithmetic: Arithmetic
 
-    def __init__(
-        self,
-        chain: ChainNetwork,
-        num_steps: int,
-        arithmetic: str,
-        fixed: FixedPointNetwork | None = None,
-    ) -> None:
+    def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
         self.chain = chain
-        self.arithmetic: Arithmetic = check_arithmetic(arithmetic)
         self.T = num_steps
         self.sizes = chain.sizes
-        K = len(self.sizes)
-        self.L = K - 1
-        self.W = num_steps + self.L
-        if self.arithmetic == "float32":
-            f32 = np.float32
-            self.weights = [layer.weight for layer in chain.layers]
-            self.biases = [layer.bias for layer in chain.layers]
-            self.beta = [layer.beta.astype(f32) for layer in chain.layers]
-            self.gain = [layer.gain.astype(f32) for layer in chain.layers]
-            self.leak = [layer.leak.astype(f32) for layer in chain.layers]
-            self.theta = [layer.threshold.astype(f32) for layer in chain.layers]
-            self.v_reset = [layer.v_reset.astype(f32) for layer in chain.layers]
-            return
-        check_lava_compatible(chain)
-        self.t = 1  # Lava's first time step
-        self.u = [np.zeros(n) for n in self.sizes]
-        self.v = [np.zeros(n) for n in self.sizes]
-        if self.arithmetic == "float64":
-            # Lava float: u = u (1 - du) + a_in;  v = v (1 - dv) + u + bias  (du = 1), with the
-            # parameters Lava's processes get (snnkart.backends.lava_params)
-            params = lava_layers(chain, "float64")
-            self.weights = [layer.weight.astype(np.float64) for layer in chain.layers]
-            self.du = params[0].du
-            self.dv = [float(p.dv) for p in params]
-            self.vth = [float(p.vth) for p in params]
-            self.bias = [np.asarray(p.bias_mant, dtype=np.float64) for p in params]
-            self.buffers = [np.zeros(n) for n in self.sizes[1:]]
-        else:
-            self.fixed = fixed if fixed is not None else quantize(chain)
-            q = self.fixed.layers
-            self.u = [np.zeros(n, dtype=np.int64) for n in self.sizes]
-            self.v = [np.zeros(n, dtype=np.int64) for n in self.sizes]
-            self.qweights = [layer.weight for layer in q[1:]]
-            self.eff_bias = [layer.effective_bias for layer in q]
-            self.eff_vth = [layer.vth << ACT_SHIFT for layer in q]
-            self.decay_u = [DECAY_UNITY - (layer.du + 1) for layer in q]
-            self.decay_v = [DECAY_UNITY - layer.dv for layer in q]
-            self.buffers = [np.zeros(n, dtype=np.int64) for n in self.sizes[1:]]
+        self.L = len(self.sizes) - 1
+        self.offsets = np.cumsum((0, *self.sizes))
 
-    # -- float32, torch order ---------------------------------------------------------------
+    def window(self, current: np.ndarray) -> np.ndarray:
+        if current.shape != (self.T, self.sizes[0]):
+            raise ValueError(f"current must be [T, n1] = {(self.T, self.sizes[0])}")
+        return self._window(current)
 
-    def _window_float32(self, current: np.ndarray) -> np.ndarray:
-        T, offsets = self.T, np.cumsum((0, *self.sizes))
+    def _window(self, current: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class Float32Chain(_Simulator):
+    """torch's order of operations: T logical steps from zero membranes, no pipeline."""
+
+    arithmetic: Arithmetic = "float32"
+
+    def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
+        super().__init__(chain, num_steps)
+        f32 = np.float32
+        self.weights = [layer.weight for layer in chain.layers]
+        self.biases = [layer.bias for layer in chain.layers]
+        self.beta = [layer.beta.astype(f32) for layer in chain.layers]
+        self.gain = [layer.gain.astype(f32) for layer in chain.layers]
+        self.leak = [layer.leak.astype(f32) for layer in chain.layers]
+        self.theta = [layer.threshold.astype(f32) for layer in chain.layers]
+        self.v_reset = [layer.v_reset.astype(f32) for layer in chain.layers]
+
+    def _window(self, current: np.ndarray) -> np.ndarray:
+        T, offsets = self.T, self.offsets
         raster = np.zeros((T, offsets[-1]), dtype=bool)
         v = [np.zeros(n, dtype=np.float32) for n in self.sizes]
         for t in range(T):
@@ -138,10 +116,65 @@ class ChainSimulator:
                 s_prev = s
         return raster
 
-    # -- Lava pipeline ------------------------------------------------------------------------
 
-    def _lif_float(self, i: int, a_in: np.ndarray) -> np.ndarray:
-        if self.t % self.W == (i + 1) % self.W:
+class _LavaPipeline(_Simulator):
+    """Lava's pipeline (module docstring): W = T + L rows per window, layer i reset at row i,
+    each Dense one step late. The state carries across windows (Dense buffers, the Lava time
+    step), as it does on Lava."""
+
+    weights: list[np.ndarray]  # the Dense weights feeding layers 1.. (index i-1)
+    buffers: list[np.ndarray]  # what each Dense sends next step
+
+    def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
+        super().__init__(chain, num_steps)
+        check_lava_compatible(chain)
+        self.W = num_steps + self.L
+        self.t = 1  # Lava's first time step
+
+    def _reset_due(self, i: int) -> bool:
+        return self.t % self.W == (i + 1) % self.W
+
+    def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _window(self, current: np.ndarray) -> np.ndarray:
+        K, T, offsets = len(self.sizes), self.T, self.offsets
+        raster = np.zeros((self.W, offsets[-1]), dtype=bool)
+        zero = np.zeros_like(current[0])
+        for r in range(self.W):
+            spikes = []
+            for i in range(K):
+                a_in = (current[r] if r < T else zero) if i == 0 else self.buffers[i - 1]
+                s = self._lif(i, a_in)
+                raster[r, offsets[i] : offsets[i + 1]] = s
+                spikes.append(s)
+            for i in range(1, K):  # each Dense sent its old buffer first, then integrates
+                self.buffers[i - 1] = self.weights[i - 1][:, spikes[i - 1]].sum(axis=1)
+            self.t += 1
+        return raster
+
+
+class LavaFloatChain(_LavaPipeline):
+    """What Lava's floating-point models compute: float64, ``u = u (1 - du) + a_in``,
+    ``v = v (1 - dv) + u + bias`` with the parameters Lava's processes get
+    (:mod:`snnkart.backends.lava_params`)."""
+
+    arithmetic: Arithmetic = "float64"
+
+    def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
+        super().__init__(chain, num_steps)
+        params = lava_layers(chain, "float64")
+        self.weights = [np.asarray(p.weight) for p in params[1:]]
+        self.du = params[0].du
+        self.dv = [float(p.dv) for p in params]
+        self.vth = [float(p.vth) for p in params]
+        self.bias = [np.asarray(p.bias_mant, dtype=np.float64) for p in params]
+        self.u = [np.zeros(n) for n in self.sizes]
+        self.v = [np.zeros(n) for n in self.sizes]
+        self.buffers = [np.zeros(n) for n in self.sizes[1:]]
+
+    def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
+        if self._reset_due(i):
             self.u[i] *= 0
             self.v[i] *= 0
         self.u[i] = self.u[i] * (1 - self.du)
@@ -151,8 +184,30 @@ class ChainSimulator:
         self.v[i][s] = 0
         return s
 
-    def _lif_fixed(self, i: int, a_in: np.ndarray) -> np.ndarray:
-        if self.t % self.W == (i + 1) % self.W:
+
+class LavaFixedChain(_LavaPipeline):
+    """What Lava's bit-accurate models compute on the quantised network: 24-bit state with
+    wrap-around and saturation, decays truncated toward zero."""
+
+    arithmetic: Arithmetic = "fixed"
+
+    def __init__(
+        self, chain: ChainNetwork, num_steps: int, fixed: FixedPointNetwork | None = None
+    ) -> None:
+        super().__init__(chain, num_steps)
+        self.fixed = fixed if fixed is not None else quantize(chain)
+        q = self.fixed.layers
+        self.weights = [np.asarray(layer.weight) for layer in q[1:]]
+        self.eff_bias = [layer.effective_bias for layer in q]
+        self.eff_vth = [layer.vth << ACT_SHIFT for layer in q]
+        self.decay_u = [DECAY_UNITY - (layer.du + 1) for layer in q]
+        self.decay_v = [DECAY_UNITY - layer.dv for layer in q]
+        self.u = [np.zeros(n, dtype=np.int64) for n in self.sizes]
+        self.v = [np.zeros(n, dtype=np.int64) for n in self.sizes]
+        self.buffers = [np.zeros(n, dtype=np.int64) for n in self.sizes[1:]]
+
+    def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
+        if self._reset_due(i):
             self.u[i] *= 0
             self.v[i] *= 0
         du = self.u[i] * self.decay_u[i]
@@ -168,32 +223,20 @@ class ChainSimulator:
         self.v[i] = v
         return s
 
-    def _window_lava(self, current: np.ndarray) -> np.ndarray:
-        K, T = len(self.sizes), self.T
-        offsets = np.cumsum((0, *self.sizes))
-        raster = np.zeros((self.W, offsets[-1]), dtype=bool)
-        lif = self._lif_float if self.arithmetic == "float64" else self._lif_fixed
-        zero = np.zeros_like(current[0])
-        for r in range(self.W):
-            spikes = []
-            for i in range(K):
-                a_in = (current[r] if r < T else zero) if i == 0 else self.buffers[i - 1]
-                s = lif(i, a_in)
-                raster[r, offsets[i] : offsets[i + 1]] = s
-                spikes.append(s)
-            for i in range(1, K):  # each Dense sent its old buffer first, then integrates
-                w = self.weights[i] if self.arithmetic == "float64" else self.qweights[i - 1]
-                assert w is not None
-                self.buffers[i - 1] = w[:, spikes[i - 1]].sum(axis=1)
-            self.t += 1
-        return raster
 
-    def window(self, current: np.ndarray) -> np.ndarray:
-        if current.shape != (self.T, self.sizes[0]):
-            raise ValueError(f"current must be [T, n1] = {(self.T, self.sizes[0])}")
-        if self.arithmetic == "float32":
-            return self._window_float32(current)
-        return self._window_lava(current)
+def ChainSimulator(
+    chain: ChainNetwork,
+    num_steps: int,
+    arithmetic: str,
+    fixed: FixedPointNetwork | None = None,
+) -> Float32Chain | LavaFloatChain | LavaFixedChain:
+    """The simulator of ``chain`` in ``arithmetic`` (one class per arithmetic)."""
+    checked = check_arithmetic(arithmetic)
+    if checked == "float32":
+        return Float32Chain(chain, num_steps)
+    if checked == "float64":
+        return LavaFloatChain(chain, num_steps)
+    return LavaFixedChain(chain, num_steps, fixed)
 
 
 def load_nir(path: str | Path) -> tuple[Any, Manifest]:
@@ -305,6 +348,9 @@ class NIRReference:
 __all__ = [
     "ARITHMETICS",
     "ChainSimulator",
+    "Float32Chain",
+    "LavaFixedChain",
+    "LavaFloatChain",
     "ManifestError",
     "NIRFileError",
     "NIRReference",
