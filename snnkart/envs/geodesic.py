@@ -43,7 +43,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from snnkart.envs.constants import KART_RADIUS_PX
-from snnkart.envs.geometry import segment_distance
+from snnkart.envs.geometry import segment_distance, segments_cross
 from snnkart.envs.tracks import Track, TrackError
 
 CELL_PX = 4.0
@@ -54,21 +54,6 @@ FREE_CLEARANCE_PX = 0.6 * KART_RADIUS_PX
 
 _MOVES = ((1, 0), (0, 1), (1, 1), (1, -1), (1, 2), (2, 1), (1, -2), (2, -1))
 """Half of the 16 neighbour moves (di, dj); the graph is undirected."""
-
-
-def _crosses(
-    x0: np.ndarray, y0: np.ndarray, x1: np.ndarray, y1: np.ndarray, seg: tuple[float, ...]
-) -> np.ndarray:
-    """Whether each move (x0, y0) -> (x1, y1) intersects the segment (ax, ay, bx, by)."""
-    ax, ay, bx, by = seg
-
-    def side(px: np.ndarray | float, py: np.ndarray | float, qx: np.ndarray | float,
-             qy: np.ndarray | float, rx: np.ndarray | float, ry: np.ndarray | float) -> np.ndarray:  # fmt: skip
-        return np.sign((qx - px) * (ry - py) - (qy - py) * (rx - px))  # type: ignore[no-any-return]
-
-    return (side(ax, ay, bx, by, x0, y0) != side(ax, ay, bx, by, x1, y1)) & (
-        side(x0, y0, x1, y1, ax, ay) != side(x0, y0, x1, y1, bx, by)
-    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,7 +202,7 @@ def geodesic_field(
     mx, my = fx[margin_cells], fy[margin_cells]
     blocked = np.zeros(margin_cells.shape, dtype=bool)
     for seg in track.segments:
-        blocked |= _crosses(mx, my, fx[nearest], fy[nearest], tuple(seg))
+        blocked |= segments_cross(mx, my, fx[nearest], fy[nearest], tuple(seg))
     # The path itself runs where the kart centre can be (``clearance`` from every wall).
     road = drive[a] & drive[b]
 
@@ -236,7 +221,7 @@ def geodesic_field(
         keep = np.ones(a.shape, dtype=bool)
         if k > 0:
             prev = track.checkpoints[k - 1]
-            keep = ~_crosses(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
+            keep = ~segments_cross(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
         start = np.full(n, np.inf)
         start[sources] = 0.0
         ok = keep & road

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -43,3 +44,22 @@ def segment_distance(
     dd = dx * dx + dy * dy
     t = np.clip(((px - ax) * dx + (py - ay) * dy) / np.maximum(dd, 1e-12), 0.0, 1.0)
     return np.hypot(px - (ax + t * dx), py - (ay + t * dy))  # type: ignore[no-any-return]
+
+
+def segments_cross(
+    x0: np.ndarray | float,
+    y0: np.ndarray | float,
+    x1: np.ndarray | float,
+    y1: np.ndarray | float,
+    seg: Sequence[float],
+) -> np.ndarray:
+    """Whether each segment (x0, y0) -> (x1, y1) intersects the segment ``seg`` (broadcast;
+    touching counts, collinear overlap does not)."""
+    ax, ay, bx, by = seg
+
+    def side(px: Any, py: Any, qx: Any, qy: Any, rx: Any, ry: Any) -> np.ndarray:
+        return np.sign((qx - px) * (ry - py) - (qy - py) * (rx - px))  # type: ignore[no-any-return]
+
+    return (side(ax, ay, bx, by, x0, y0) != side(ax, ay, bx, by, x1, y1)) & (
+        side(x0, y0, x1, y1, ax, ay) != side(x0, y0, x1, y1, bx, by)
+    )

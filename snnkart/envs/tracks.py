@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
-from snnkart.envs.geometry import segment_distance
+from snnkart.envs.geometry import segment_distance, segments_cross
 from snnkart.errors import TrackError
 
 if sys.version_info >= (3, 11):
@@ -323,23 +323,10 @@ def box_segment_distance(centre: tuple[float, float], half: float, seg: np.ndarr
 
 def _segments_cross_box(centre: tuple[float, float], half: float, seg: np.ndarray) -> bool:
     cx, cy = centre
-    box = np.asarray(
-        [
-            [cx - half, cy - half, cx + half, cy - half],
-            [cx + half, cy - half, cx + half, cy + half],
-            [cx + half, cy + half, cx - half, cy + half],
-            [cx - half, cy + half, cx - half, cy - half],
-        ]
-    )
-    for edge in box:
-        p, r = edge[:2], edge[2:] - edge[:2]
-        q, s = seg[:, :2], seg[:, 2:] - seg[:, :2]
-        denom = r[0] * s[:, 1] - r[1] * s[:, 0]
-        qp = q - p
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (qp[:, 0] * s[:, 1] - qp[:, 1] * s[:, 0]) / denom
-            u = (qp[:, 0] * r[1] - qp[:, 1] * r[0]) / denom
-        if np.any((denom != 0) & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)):
+    corners = [(cx - half, cy - half), (cx + half, cy - half), (cx + half, cy + half),
+               (cx - half, cy + half)]  # fmt: skip
+    for (x0, y0), (x1, y1) in zip(corners, corners[1:] + corners[:1], strict=True):
+        if any(bool(segments_cross(x0, y0, x1, y1, s)) for s in seg):
             return True
     return False
 
