@@ -145,6 +145,32 @@ def chain_from_graph(graph: Any, dt: float) -> ChainNetwork:
     import nir
 
     nodes = graph.nodes
+    order = _chain_order(graph)
+    body = order[1:-1]
+    n_in = int(np.prod(np.asarray(nodes[order[0]].input_type["input"])))
+    scale = None
+    if body and isinstance(nodes[body[0]], nir.Scale):
+        scale = _array(nodes[body[0]], body[0], "scale").reshape(-1)
+        body = body[1:]
+    layers, readout = _layers(nodes, body, n_in, dt)
+    if scale is not None and scale.shape not in ((1,), (n_in,)):
+        raise UnsupportedGraphError(f"Scale after the input has shape {scale.shape}")
+    return ChainNetwork(
+        n_in=n_in,
+        input_scale=scale,
+        layers=tuple(layers),
+        readout_weight=None if readout is None else readout[0],
+        readout_bias=None if readout is None else readout[1],
+        readout_node=None if readout is None else readout[2],
+    )
+
+
+def _chain_order(graph: Any) -> list[str]:
+    """The node names from the one Input to the Output, checked to form a single chain of
+    supported nodes."""
+    import nir
+
+    nodes = graph.nodes
     succ: dict[str, list[str]] = {}
     for src, dst in graph.edges:
         succ.setdefault(src, []).append(dst)
@@ -175,19 +201,19 @@ def chain_from_graph(graph: Any, dt: float) -> ChainNetwork:
         raise UnsupportedGraphError(f"nodes {missing} are not on the chain from the input")
     if not isinstance(nodes[order[-1]], nir.Output):
         raise UnsupportedGraphError(f"the chain ends at {order[-1]!r}, not at an Output node")
+    return order
 
-    body = order[1:-1]
-    n_in = int(np.prod(np.asarray(nodes[order[0]].input_type["input"])))
-    scale = None
-    if body and isinstance(nodes[body[0]], nir.Scale):
-        scale = _array(nodes[body[0]], body[0], "scale").reshape(-1)
-        body = body[1:]
+
+def _layers(
+    nodes: dict[str, Any], body: list[str], n_in: int, dt: float
+) -> tuple[list[SpikingLayer], tuple[np.ndarray, np.ndarray, str] | None]:
+    """The spiking layers (synapse -> neuron pairs) and the readout synapse, if any."""
+    import nir
+
     layers: list[SpikingLayer] = []
     readout: tuple[np.ndarray, np.ndarray, str] | None = None
-    i = 0
-    while i < len(body):
-        name = body[i]
-        node = nodes[name]
+    for i in range(0, len(body), 2):
+        name, node = body[i], nodes[body[i]]
         if not isinstance(node, (nir.Affine, nir.Linear)):
             raise UnsupportedGraphError(
                 f"node {name!r} ({type(node).__name__}) where a synapse (Affine or Linear) was "
@@ -211,16 +237,6 @@ def chain_from_graph(graph: Any, dt: float) -> ChainNetwork:
             )
         params = _neuron(neuron_name, neuron, weight.shape[0], dt)
         layers.append(SpikingLayer(name, neuron_name, weight, bias, **params))
-        i += 2
     if not layers:
         raise UnsupportedGraphError("the graph has no spiking layer (LIF or IF)")
-    if scale is not None and scale.shape not in ((1,), (n_in,)):
-        raise UnsupportedGraphError(f"Scale after the input has shape {scale.shape}")
-    return ChainNetwork(
-        n_in=n_in,
-        input_scale=scale,
-        layers=tuple(layers),
-        readout_weight=None if readout is None else readout[0],
-        readout_bias=None if readout is None else readout[1],
-        readout_node=None if readout is None else readout[2],
-    )
+    return layers, readout
