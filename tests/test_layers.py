@@ -29,7 +29,6 @@ MODULE_LINES, FUNCTION_LINES = 420, 60
 LONG_MODULES = {"snnkart/envs/base.py": 500}
 LONG_FUNCTIONS = {
     "snnkart/envs/geodesic.py::geodesic_field": 95,  # kernel: the distance-field sweep
-    "snnkart/app/evaluate.py::run_eval": 79,
     "snnkart/envs/base.py::step": 67,
     "snnkart/envs/base.py::__init__": 67,
     "snnkart/cli/play.py::run_play": 67,

@@ -31,9 +31,9 @@ def run_eval(
     track: str | None = None,
 ) -> dict[str, Any]:
     """Evaluate a run's torch policy; write and return the eval record."""
-    from snnkart.envs.tracks import embed_track, load_track, track_sha256
-    from snnkart.eval.episodes import EvalSummary, run_episodes, write_eval
-    from snnkart.eval.video import check_video_path, video_writer
+    from snnkart.envs.tracks import track_sha256
+    from snnkart.eval.episodes import EvalSummary, write_eval
+    from snnkart.eval.video import check_video_path
     from snnkart.rl.trained import TorchPredictor, load_run
 
     if video is not None:
@@ -41,32 +41,12 @@ def run_eval(
         if render:
             raise UsageError("choose either --render (a window) or --video (a file), not both")
     run = load_run(run_dir, checkpoint)
-    assert run.track is not None
-    trained = embed_track(run.track, run.config.track)
-    del trained["toml"]
-    chosen, given = (
-        (load_track(track), track) if track is not None else (run.track, run.config.track)
-    )
+    chosen, given, trained = _tracks(run, track)
     override = track_sha256(chosen) != trained["sha256"]
     label = track_label(chosen.name, given)
     mode = "human" if render else ("rgb_array" if video is not None else None)
     env = run.config.make_env(render_mode=mode, track=chosen)
-    predictor = TorchPredictor(run, seed=seed)
-    with contextlib.ExitStack() as stack:
-        stack.callback(env.close)
-        stack.enter_context(faults.caught())  # Ctrl-C is taken between env steps
-        task = stack.enter_context(reporter.progress("evaluating", episodes))
-        on_step = None
-        if video is not None:
-            writer = stack.enter_context(video_writer(video, fps=RENDER_FPS / 2))
-
-            def on_step(e: Any) -> None:
-                if e.unwrapped.episode_steps % 2 == 0:
-                    writer.append_data(e.render())
-
-        results = run_episodes(
-            env, predictor, episodes, seed, on_step=on_step, on_episode=lambda r: task.advance()
-        )
+    results = _episodes(env, TorchPredictor(run, seed=seed), episodes, seed, video, reporter)
     summary = EvalSummary.of(results)
     path = out or run_dir / "eval.json"
     extra = {
@@ -85,11 +65,7 @@ def run_eval(
     record = write_eval(path, summary, results, extra)
     reporter.message(
         f"{run.config.policy.upper()} {run.config.env}/{label} "
-        f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: "
-        f"success {summary.success_rate:.0%}, return {summary.mean_return:.2f} "
-        f"+- {summary.std_return:.2f}, lap time {_fmt(summary.mean_lap_time)} s, "
-        f"crashes {summary.crashes}, stood still {summary.stood_still}, "
-        f"time-outs {summary.timeouts}"
+        f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: {_describe(summary)}"
     )
     if override:
         reporter.message(
@@ -98,6 +74,53 @@ def run_eval(
         )
     reporter.message(f"results written to {path}")
     return record
+
+
+def _episodes(
+    env: Any, predictor: Any, episodes: int, seed: int, video: Path | None, reporter: Reporter
+) -> list[Any]:
+    """Run the seeded episodes (every second frame to ``video`` if given); the env is closed
+    after, also on Ctrl-C, which is taken between env steps."""
+    from snnkart.eval.episodes import run_episodes
+    from snnkart.eval.video import video_writer
+
+    with contextlib.ExitStack() as stack:
+        stack.callback(env.close)
+        stack.enter_context(faults.caught())
+        task = stack.enter_context(reporter.progress("evaluating", episodes))
+        on_step = None
+        if video is not None:
+            writer = stack.enter_context(video_writer(video, fps=RENDER_FPS / 2))
+
+            def on_step(e: Any) -> None:
+                if e.unwrapped.episode_steps % 2 == 0:
+                    writer.append_data(e.render())
+
+        return run_episodes(
+            env, predictor, episodes, seed, on_step=on_step, on_episode=lambda r: task.advance()
+        )
+
+
+def _tracks(run: Any, track: str | None) -> tuple[Any, str, dict[str, str]]:
+    """The track to evaluate on (``--track``, else the one trained on), how it was named, and
+    the trained track's name, given path and hash."""
+    from snnkart.envs.tracks import embed_track, load_track
+
+    assert run.track is not None
+    trained = embed_track(run.track, run.config.track)
+    del trained["toml"]
+    if track is not None:
+        return load_track(track), track, trained
+    return run.track, run.config.track, trained
+
+
+def _describe(summary: Any) -> str:
+    return (
+        f"success {summary.success_rate:.0%}, return {summary.mean_return:.2f} "
+        f"+- {summary.std_return:.2f}, lap time {_fmt(summary.mean_lap_time)} s, "
+        f"crashes {summary.crashes}, stood still {summary.stood_still}, "
+        f"time-outs {summary.timeouts}"
+    )
 
 
 def run_eval_exported(
