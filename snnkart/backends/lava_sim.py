@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from snnkart import faults
+from snnkart.backends.base import PRECISIONS as BACKEND_PRECISIONS
 from snnkart.backends.base import Arithmetic, SpikeCounts, WindowResult, split_window
 from snnkart.backends.host import HostCodec
 from snnkart.backends.lava_params import LavaSpec, lava_spec
@@ -44,7 +45,7 @@ from snnkart.backends.reference import load_chain
 from snnkart.errors import BackendError
 from snnkart.faults import fault_point
 
-PRECISIONS = ("float", "fixed")
+PRECISIONS = tuple(BACKEND_PRECISIONS["lava-sim"])  # "float", "fixed"
 STARTUP_TIMEOUT = 120.0
 WINDOW_TIMEOUT = 90.0
 CLOSE_TIMEOUT = 4.0

@@ -78,13 +78,13 @@ def spec_hash(spec: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def spec_differences(saved: dict[str, Any], env: KartEnv) -> list[str]:
-    """How the saved spec differs from ``env``'s, one phrase per difference; a revision
-    mismatch comes alone, first (what the observations mean has changed)."""
+def spec_differences(saved: dict[str, Any], spec: dict[str, Any]) -> list[str]:
+    """How the saved spec differs from ``spec`` (an env's :func:`env_spec`), one phrase per
+    difference; a revision mismatch comes alone, first (what the observations mean has
+    changed)."""
     mismatch = revision_mismatch(saved.get("revision"))
     if mismatch:
         return [mismatch]
-    spec = env_spec(env)
     diffs = []
     if saved.get("obs_dim") != spec["obs_dim"]:
         diffs.append(f"observation size {saved.get('obs_dim')} vs {spec['obs_dim']}")

@@ -130,7 +130,7 @@ def open_backends(
         if backend != "nir-ref":
             exact = NIRReference(nir_path, primary.arithmetic, seed=seed)
         float32 = None
-        if primary.arithmetic != "float32" or backend != "nir-ref":
+        if not (backend == "nir-ref" and primary.arithmetic == "float32"):  # not itself
             float32 = NIRReference(nir_path, "float32", seed=seed)
     except BaseException:
         primary.close()

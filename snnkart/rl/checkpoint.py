@@ -133,14 +133,14 @@ def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
 
 def check_compatible(meta: dict[str, Any], env: KartEnv, source: str) -> None:
     """Raise a clear error if the checkpoint was trained on a different env spec."""
-    if meta.get("env_spec_hash") == spec_hash(env_spec(env)):
+    spec = env_spec(env)
+    if meta.get("env_spec_hash") == spec_hash(spec):
         return
     saved = meta.get("env_spec", {})
-    if revision_mismatch(saved.get("revision")):
-        raise CheckpointError(
-            f"{source} was trained on {revision_mismatch(saved.get('revision'))}; retrain the run"
-        )
-    diffs = spec_differences(saved, env)
+    mismatch = revision_mismatch(saved.get("revision"))
+    if mismatch:
+        raise CheckpointError(f"{source} was trained on {mismatch}; retrain the run")
+    diffs = spec_differences(saved, spec)
     raise CheckpointError(
         f"{source} was trained for another env ({'; '.join(diffs) or 'env spec differs'}); "
         "evaluate it on the env it was trained on"
