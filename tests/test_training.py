@@ -24,8 +24,7 @@ import torch
 from typer.testing import CliRunner
 
 from snnkart.cli import app
-from snnkart.envs.base import ENV_REVISION
-from snnkart.envs.spec import env_spec, spec_hash
+from snnkart.envs.spec import ENV_REVISION, env_spec, spec_hash
 from snnkart.eval.episodes import EVAL_SCHEMA, EvalSummary, run_episodes
 from snnkart.rl.checkpoint import (
     CHECKPOINT_SCHEMA,

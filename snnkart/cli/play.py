@@ -6,7 +6,7 @@ brake, steer right), Space also brakes in gazebo and steer, R restarts the episo
 closing the window quits. When an episode ends, one line with its outcome and return is
 printed and a new episode starts.
 
-pygame is imported inside :func:`run_play` only; the key-to-action mappings are plain
+pygame is imported only when the window is polled; the key-to-action mappings are plain
 functions of :class:`Keys`, so they can be used and tested without pygame.
 """
 
@@ -111,8 +111,6 @@ def run_play(
         The number of episodes that ended (finish, crash, standing still or time limit);
         episodes restarted with R or cut short by quitting are not counted.
     """
-    import pygame
-
     from snnkart.envs import make, resolve_env_name
     from snnkart.envs.base import KartEnv
 
@@ -125,35 +123,45 @@ def run_play(
         kart = env.unwrapped
         assert isinstance(kart, KartEnv)
         print(f"{name} on {kart.track.name}: {KEY_HELP[name]}; R restart, Esc quit")
-        episode_return = 0.0
         step = 0
         while max_steps is None or step < max_steps:
             if on_step is not None:
                 on_step(step)
-            for event in pygame.event.get():
-                if event.type == pygame.QUIT or (
-                    event.type == pygame.KEYDOWN and event.key == pygame.K_ESCAPE
-                ):
-                    return episodes
-                if event.type == pygame.KEYDOWN and event.key == pygame.K_r:
-                    env.reset()
-                    episode_return = 0.0
-            held = pygame.key.get_pressed()
-            keys = Keys(
-                w=held[pygame.K_w],
-                a=held[pygame.K_a],
-                s=held[pygame.K_s],
-                d=held[pygame.K_d],
-                space=held[pygame.K_SPACE],
-            )
-            _, reward, terminated, truncated, info = env.step(to_action(keys))
+            command, keys = _poll()
+            if command == "quit":
+                return episodes
+            if command == "restart":
+                env.reset()
+            _, _, terminated, truncated, info = env.step(to_action(keys))
             step += 1
-            episode_return += float(reward)
             if terminated or truncated:
                 episodes += 1
-                print(f"{episode_outcome(info, truncated)}, return {episode_return:+.2f}")
+                print(f"{episode_outcome(info, truncated)}, return {kart.episode_return:+.2f}")
                 env.reset()
-                episode_return = 0.0
     finally:
         env.close()
     return episodes
+
+
+def _poll() -> tuple[str, Keys]:
+    """This step's command (``quit`` on Esc or a closed window, ``restart`` on R, else
+    ``drive``) and the driving keys held."""
+    import pygame
+
+    command = "drive"
+    for event in pygame.event.get():
+        if event.type == pygame.QUIT or (
+            event.type == pygame.KEYDOWN and event.key == pygame.K_ESCAPE
+        ):
+            return "quit", Keys(False, False, False, False, False)
+        if event.type == pygame.KEYDOWN and event.key == pygame.K_r:
+            command = "restart"
+    held = pygame.key.get_pressed()
+    keys = Keys(
+        w=held[pygame.K_w],
+        a=held[pygame.K_a],
+        s=held[pygame.K_s],
+        d=held[pygame.K_d],
+        space=held[pygame.K_SPACE],
+    )
+    return command, keys

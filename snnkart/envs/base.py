@@ -1,75 +1,36 @@
-"""The shared kart simulation: pymunk world, checkpoints, LIDAR, reward and episode logic.
+"""The shared kart simulation: one step of physics, checkpoints in order, the observation and
+the episode's end (the world is :mod:`snnkart.envs.world`, the reward terms
+:mod:`snnkart.envs.reward`, the observation layout :mod:`snnkart.envs.observation`).
 
 Subclasses (grid, gazebo, steer) define the action space, the vehicle dynamics and the
-kinematic part of the observation. One pymunk Space is built per env at construction and
-reused for every episode (the original leaked the whole track into the space on each reset).
+kinematic part of the observation.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
 import gymnasium as gym
 import numpy as np
-import pymunk
 from gymnasium import spaces
 
 from snnkart.envs.config import EnvConfig
-from snnkart.envs.constants import (
-    DT,
-    KART_MASS_KG,
-    KART_RADIUS_PX,
-    PIXELS_PER_METRE,
-    RENDER_FPS,
-)
+from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE, RENDER_FPS
 from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.geometry import nearest_point
 from snnkart.envs.lidar import cast_rays, ray_offsets
+from snnkart.envs.observation import ObsField, observation_layout, observation_space
+from snnkart.envs.reward import StandStill, step_terms
 from snnkart.envs.tracks import Track, load_track
+from snnkart.envs.world import build_world
 from snnkart.errors import EnvError
 from snnkart.faults import fault_point
 
-_KART, _WALL, _CHECKPOINT = 1, 2, 3
 ACTION_MODES = ("discrete", "continuous")
 
-ENV_REVISION = 3
-"""Revision of what the observations and rewards mean, recorded with every checkpoint and
-NIR export, so a policy is never run on observations whose meaning changed under it (the
-layout and bounds alone do not show that):
-
-1. progress and the checkpoint observation measured straight at the next checkpoint line;
-2. both along the shortest drivable path (geodesic); heading reward term;
-3. steer's path keeps the car's turning radius from the walls.
-"""
-
-
-def revision_mismatch(saved: Any) -> str | None:
-    """What to tell a user whose policy was made on env revision ``saved`` (None when it is
-    the current one); the caller adds what to do."""
-    if saved == ENV_REVISION:
-        return None
-    return (
-        f"env revision {saved if saved is not None else '1 or 2'}, and this snnkart's envs "
-        f"are revision {ENV_REVISION}: what the observations and rewards mean has changed "
-        "since (snnkart.envs.base.ENV_REVISION)"
-    )
-
-
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
-
-
-@dataclass(frozen=True)
-class ObsField:
-    """One named block of the observation vector, with its true bounds."""
-
-    name: str
-    size: int
-    low: float
-    high: float
-    description: str
 
 
 class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
@@ -92,8 +53,6 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     _passed_this_step: int
     _touched_wall: bool
     _steps: int
-    _still_steps: int
-    _anchor: tuple[float, float]
     _checkpoint_times: list[float]
     _needs_reset: bool
     _last_action: Any
@@ -110,26 +69,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         config: ConfigT | dict[str, Any] | None = None,
         render_mode: str | None = None,
     ) -> None:
-        if action_mode not in ACTION_MODES:
-            raise EnvError(
-                f"unknown action_mode {action_mode!r}; choose one of {', '.join(ACTION_MODES)}"
-            )
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise EnvError(
-                f"unknown render_mode {render_mode!r}; choose one of "
-                f"{', '.join(self.metadata['render_modes'])} or None"
-            )
-        if config is None:
-            resolved = self.config_class()
-        elif isinstance(config, dict):
-            resolved = self.config_class.model_validate(config)
-        elif isinstance(config, self.config_class):
-            resolved = config
-        else:
-            raise TypeError(
-                f"{type(self).__name__} needs a {self.config_class.__name__} or a dict, "
-                f"got {type(config).__name__}"
-            )
+        self._check_modes(action_mode, render_mode)
+        resolved = self._resolve_config(config)
         self.config: ConfigT = resolved  # type: ignore[assignment]
         self.track = load_track(track)
         self.action_mode = action_mode
@@ -149,27 +90,44 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             self.track.time_limit_s * self._time_limit_factor() / DT
         )
 
-        self.observation_layout: tuple[ObsField, ...] = (
-            ObsField("lidar", lidar.n_rays, 0.0, 1.0, "ray distance / range, 1 = no hit"),
-            *self._kinematic_fields(),
-            ObsField("checkpoint_cos", 1, -1.0, 1.0, "cos of the way to the next checkpoint"),
-            ObsField("checkpoint_sin", 1, -1.0, 1.0, "sin of the way to the next checkpoint"),
-            ObsField("checkpoint_distance", 1, 0.0, 1.0, "min(path distance / scale, 1)"),
-        )
-        low = np.concatenate([np.full(f.size, f.low) for f in self.observation_layout])
-        high = np.concatenate([np.full(f.size, f.high) for f in self.observation_layout])
-        self.observation_space: spaces.Box = spaces.Box(
-            low.astype(np.float32), high.astype(np.float32)
-        )
-        self._obs_dim = int(low.shape[0])
+        self.observation_layout = observation_layout(lidar.n_rays, self._kinematic_fields())
+        self.observation_space: spaces.Box = observation_space(self.observation_layout)
+        self._obs_dim = int(self.observation_space.shape[0])
         self.action_space = self._make_action_space()
 
-        self._build_world()
-        self._still_radius = self.config.reward.stand_still_radius_m * PIXELS_PER_METRE
+        world = build_world(
+            self._segments, self.track.checkpoints, self._on_wall, self._on_checkpoint
+        )
+        self._space, self._body = world.space, world.body
+        self._stand_still = StandStill(self.config.reward.stand_still_radius_m * PIXELS_PER_METRE)
         self._reset_state()
         self._reset_vehicle()
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
         self._renderer: Any = None
+
+    def _check_modes(self, action_mode: str, render_mode: str | None) -> None:
+        if action_mode not in ACTION_MODES:
+            raise EnvError(
+                f"unknown action_mode {action_mode!r}; choose one of {', '.join(ACTION_MODES)}"
+            )
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise EnvError(
+                f"unknown render_mode {render_mode!r}; choose one of "
+                f"{', '.join(self.metadata['render_modes'])} or None"
+            )
+
+    @classmethod
+    def _resolve_config(cls, config: EnvConfig | dict[str, Any] | None) -> EnvConfig:
+        if config is None:
+            return cls.config_class()
+        if isinstance(config, dict):
+            return cls.config_class.model_validate(config)
+        if isinstance(config, cls.config_class):
+            return config
+        raise TypeError(
+            f"{cls.__name__} needs a {cls.config_class.__name__} or a dict, "
+            f"got {type(config).__name__}"
+        )
 
     # -- subclass interface ---------------------------------------------------------------------
 
@@ -236,47 +194,26 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
         rw = self.config.reward
         finished = self._finished
-        # Progress = how much nearer the kart came to the next checkpoint line along the
-        # track (geodesic distance; see snnkart/envs/geodesic.py). NaN (inside a wall, or
-        # behind the checkpoint just passed) gives no progress either way.
-        k = self._next_cp
-        d0 = self._geo_d if self._geo_k == k else self._geodesic.distance(k, x0, y0)
-        d1 = self._geodesic.distance(k, self._x, self._y)
-        self._geo_k, self._geo_d = k, d1  # the next step starts here
-        progress_px = d0 - d1
-        if math.isnan(progress_px):
-            progress_px = 0.0
+        progress_px = self._progress_px(x0, y0)
         obs = self._observe()
         # Heading: the change of the cosine between the body's heading and the way to the
         # next checkpoint (the checkpoint_cos observation), a potential-based term that pays
         # for turning towards the route, e.g. on the spot at a corner (egocentric envs only).
-        turn = self._align - align0 if self.egocentric and align0_cp == k else 0.0
-        terms = {
-            "progress": rw.progress * progress_px / PIXELS_PER_METRE,
-            "heading": rw.heading * turn,
-            "checkpoint": rw.checkpoint * self._passed_this_step,
-            "finish": rw.finish if finished else 0.0,
-            "time": -rw.time,
-            "wall": 0.0,
-            "stand_still": 0.0,
-        }
-        if finished:
-            terms["progress"] = terms["heading"] = 0.0
+        turn = self._align - align0 if self.egocentric and align0_cp == self._next_cp else 0.0
+        crashed = self._touched_wall and not finished
+        still_steps = self._stand_still.update(self._x, self._y)
+        stood_still = not (finished or crashed) and still_steps >= rw.stand_still_steps
+        terms = step_terms(
+            rw,
+            progress_px=progress_px,
+            turn=turn,
+            passed=self._passed_this_step,
+            finished=finished,
+            crashed=crashed,
+            stood_still=stood_still,
+        )
         self._extra_reward_terms(terms)
         self._passed_this_step = 0
-
-        crashed = self._touched_wall and not finished
-        if crashed:
-            terms["wall"] = -rw.wall
-        # Standing still = staying within a small circle, so hovering back and forth counts.
-        if math.hypot(self._x - self._anchor[0], self._y - self._anchor[1]) > self._still_radius:
-            self._anchor = (self._x, self._y)
-            self._still_steps = 0
-        else:
-            self._still_steps += 1
-        stood_still = not (finished or crashed) and self._still_steps >= rw.stand_still_steps
-        if stood_still:
-            terms["stand_still"] = -rw.stand_still
         terminated = finished or crashed or stood_still
         truncated = not terminated and self._steps >= self.max_episode_steps
         self._needs_reset = terminated or truncated
@@ -289,6 +226,17 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         if self.render_mode == "human":
             self.render()
         return obs, reward, terminated, truncated, info
+
+    def _progress_px(self, x0: float, y0: float) -> float:
+        """How much nearer the next checkpoint line the kart came this step, along the track
+        (geodesic distance; see snnkart/envs/geodesic.py). NaN (inside a wall, or behind the
+        checkpoint just passed) gives no progress either way."""
+        k = self._next_cp
+        d0 = self._geo_d if self._geo_k == k else self._geodesic.distance(k, x0, y0)
+        d1 = self._geodesic.distance(k, self._x, self._y)
+        self._geo_k, self._geo_d = k, d1  # the next step starts here
+        progress = d0 - d1
+        return 0.0 if math.isnan(progress) else progress
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -307,7 +255,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         body.angular_velocity = 0.0
         self._space.reindex_shapes_for_body(body)
         self._reset_vehicle()
-        self._anchor = (self._x, self._y)
+        self._stand_still.restart(self._x, self._y)
         self._needs_reset = False
         obs = self._observe()
         if self.render_mode == "human":
@@ -331,41 +279,13 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
     # -- internals ------------------------------------------------------------------------------
 
-    def _build_world(self) -> None:
-        space = pymunk.Space()
-        space.gravity = (0.0, 0.0)
-        body = pymunk.Body(KART_MASS_KG, pymunk.moment_for_circle(KART_MASS_KG, 0, KART_RADIUS_PX))
-        kart = pymunk.Circle(body, KART_RADIUS_PX)
-        kart.collision_type = _KART
-        kart.filter = pymunk.ShapeFilter(categories=0b001, mask=0b110)
-        space.add(body, kart)
-        for ax, ay, bx, by in self._segments:
-            seg = pymunk.Segment(space.static_body, (ax, ay), (bx, by), 0.0)
-            seg.sensor = True
-            seg.collision_type = _WALL
-            seg.filter = pymunk.ShapeFilter(categories=0b010)
-            space.add(seg)
-        self._checkpoint_index: dict[pymunk.Shape, int] = {}
-        for i, cp in enumerate(self.track.checkpoints):
-            seg = pymunk.Segment(space.static_body, cp.a, cp.b, 0.0)
-            seg.sensor = True
-            seg.collision_type = _CHECKPOINT
-            seg.filter = pymunk.ShapeFilter(categories=0b100)
-            space.add(seg)
-            self._checkpoint_index[seg] = i
-        space.on_collision(_KART, _WALL, pre_solve=self._on_wall)
-        space.on_collision(_KART, _CHECKPOINT, pre_solve=self._on_checkpoint)
-        self._space = space
-        self._body = body
-
-    def _on_wall(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
+    def _on_wall(self) -> None:
         # pymunk runs this from C through cffi, which drops any exception raised here: an
         # interrupt is only safe as a flag (snnkart.faults.caught). Tests signal from here.
         fault_point("physics-callback")
         self._touched_wall = True
 
-    def _on_checkpoint(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: Any) -> None:
-        idx = self._checkpoint_index[arbiter.shapes[1]]
+    def _on_checkpoint(self, idx: int) -> None:
         if idx != self._next_cp or self._finished:
             return  # checkpoints count only in order
         self._checkpoint_times.append((self._steps + 1) * DT)
@@ -385,8 +305,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._passed_this_step = 0
         self._touched_wall = False
         self._steps = 0
-        self._still_steps = 0
-        self._anchor = self.track.spawn_position
+        self._stand_still.restart(*self.track.spawn_position)
         self._checkpoint_times = []
         self._needs_reset = True
         self._last_action = None

@@ -7,9 +7,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from snnkart.envs.base import KartEnv, ObsField
+from snnkart.envs.base import KartEnv
 from snnkart.envs.config import GazeboConfig
 from snnkart.envs.constants import PIXELS_PER_METRE
+from snnkart.envs.observation import ObsField
 
 
 class GazeboEnv(KartEnv[GazeboConfig]):

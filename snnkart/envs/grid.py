@@ -7,9 +7,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from snnkart.envs.base import KartEnv, ObsField
+from snnkart.envs.base import KartEnv
 from snnkart.envs.config import GridConfig
 from snnkart.envs.constants import PIXELS_PER_METRE
+from snnkart.envs.observation import ObsField
 
 # World directions of the discrete actions (x right, y down).
 DIRECTIONS = ((0.0, 0.0), (0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0))

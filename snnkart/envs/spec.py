@@ -16,11 +16,33 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 
 from snnkart.envs import make
-from snnkart.envs.base import ENV_REVISION, revision_mismatch
 
 if TYPE_CHECKING:
     from snnkart.envs.base import KartEnv
     from snnkart.envs.tracks import Track
+
+ENV_REVISION = 3
+"""Revision of what the observations and rewards mean, recorded with every checkpoint and
+NIR export, so a policy is never run on observations whose meaning changed under it (the
+layout and bounds alone do not show that):
+
+1. progress and the checkpoint observation measured straight at the next checkpoint line;
+2. both along the shortest drivable path (geodesic); heading reward term;
+3. steer's path keeps the car's turning radius from the walls.
+"""
+
+
+def revision_mismatch(saved: Any) -> str | None:
+    """What to tell a user whose policy was made on env revision ``saved`` (None when it is
+    the current one); the caller adds what to do."""
+    if saved == ENV_REVISION:
+        return None
+    return (
+        f"env revision {saved if saved is not None else '1 or 2'}, and this snnkart's envs "
+        f"are revision {ENV_REVISION}: what the observations and rewards mean has changed "
+        "since (snnkart.envs.spec.ENV_REVISION)"
+    )
+
 
 _ADDED_UNSET = ("route_clearance_m",)
 """Env config fields added after revision 3 began; left out of the spec while unset (None),

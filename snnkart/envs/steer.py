@@ -7,9 +7,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from snnkart.envs.base import KartEnv, ObsField
+from snnkart.envs.base import KartEnv
 from snnkart.envs.config import SteerConfig
 from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE
+from snnkart.envs.observation import ObsField
 
 _THROTTLE = (-1.0, 0.0, 1.0)  # brake, coast, throttle
 _STEER = (-1.0, 0.0, 1.0)  # left, straight, right

@@ -218,32 +218,8 @@ def parse_track(text: str, source: str = "<string>") -> Track:
             f"{where('pixels_per_metre')}: {ppm} is not supported; tracks use "
             f"{PIXELS_PER_METRE} px per metre (scale the coordinates instead)"
         )
-    walls_raw = raw.get("walls")
-    if not isinstance(walls_raw, list) or not walls_raw:
-        raise TrackError(f"{where('walls')}: missing; add at least one [[walls]] table with points")
-    walls = []
-    for i, w in enumerate(walls_raw):
-        pts = _points(_table(w, where(f"walls[{i}]")).get("points"), where(f"walls[{i}].points"))
-        if len(pts) < 2:
-            raise TrackError(
-                f"{where(f'walls[{i}].points')}: too few points ({len(pts)}); "
-                "a wall polyline needs at least 2"
-            )
-        walls.append(tuple(pts))
-    cps_raw = raw.get("checkpoints")
-    if not isinstance(cps_raw, list) or not cps_raw:
-        raise TrackError(
-            f"{where('checkpoints')}: missing finish line; add at least one [[checkpoints]] "
-            "table (the last one is the finish line)"
-        )
-    checkpoints = []
-    for i, c in enumerate(cps_raw):
-        tbl = _table(c, where(f"checkpoints[{i}]"))
-        a = _point(tbl.get("a"), where(f"checkpoints[{i}].a"))
-        b = _point(tbl.get("b"), where(f"checkpoints[{i}].b"))
-        if a == b:
-            raise TrackError(f"{where(f'checkpoints[{i}]')}: a and b are the same point")
-        checkpoints.append(Checkpoint(a, b))
+    walls = _walls(raw.get("walls"), where)
+    checkpoints = _checkpoints(raw.get("checkpoints"), where)
     spawn = _table(raw.get("spawn"), where("spawn"))
     pos = _point(spawn.get("position"), where("spawn.position"))
     heading = math.radians(_number(spawn.get("heading_deg", 0.0), where("spawn.heading_deg")))
@@ -266,6 +242,38 @@ def parse_track(text: str, source: str = "<string>") -> Track:
     )
     _validate_geometry(track, where)
     return track
+
+
+def _walls(walls_raw: Any, where: _Where) -> list[tuple[tuple[float, float], ...]]:
+    if not isinstance(walls_raw, list) or not walls_raw:
+        raise TrackError(f"{where('walls')}: missing; add at least one [[walls]] table with points")
+    walls = []
+    for i, w in enumerate(walls_raw):
+        pts = _points(_table(w, where(f"walls[{i}]")).get("points"), where(f"walls[{i}].points"))
+        if len(pts) < 2:
+            raise TrackError(
+                f"{where(f'walls[{i}].points')}: too few points ({len(pts)}); "
+                "a wall polyline needs at least 2"
+            )
+        walls.append(tuple(pts))
+    return walls
+
+
+def _checkpoints(cps_raw: Any, where: _Where) -> list[Checkpoint]:
+    if not isinstance(cps_raw, list) or not cps_raw:
+        raise TrackError(
+            f"{where('checkpoints')}: missing finish line; add at least one [[checkpoints]] "
+            "table (the last one is the finish line)"
+        )
+    checkpoints = []
+    for i, c in enumerate(cps_raw):
+        tbl = _table(c, where(f"checkpoints[{i}]"))
+        a = _point(tbl.get("a"), where(f"checkpoints[{i}].a"))
+        b = _point(tbl.get("b"), where(f"checkpoints[{i}].b"))
+        if a == b:
+            raise TrackError(f"{where(f'checkpoints[{i}]')}: a and b are the same point")
+        checkpoints.append(Checkpoint(a, b))
+    return checkpoints
 
 
 def _validate_geometry(track: Track, where: _Where) -> None:

@@ -78,7 +78,7 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
     """The env the manifest describes (optionally another track or env), checked to fit;
     ``track`` None: the manifest's own (see :func:`resolve_track`)."""
     from snnkart.envs import ENV_IDS, make, resolve_env_name
-    from snnkart.envs.base import revision_mismatch
+    from snnkart.envs.spec import revision_mismatch
     from snnkart.envs.tracks import TrackError
 
     spec = manifest.env

@@ -19,8 +19,8 @@ import numpy as np
 import torch
 
 from snnkart.contract import encoding
-from snnkart.envs.base import KartEnv, revision_mismatch
-from snnkart.envs.spec import env_spec, spec_differences, spec_hash
+from snnkart.envs.base import KartEnv
+from snnkart.envs.spec import env_spec, revision_mismatch, spec_differences, spec_hash
 from snnkart.errors import CheckpointError, CheckpointWriteError
 from snnkart.faults import fault_point
 from snnkart.io import atomic_path
