@@ -734,6 +734,8 @@ def _bad_input(case: str, plain: Path, tmp: Path) -> tuple[Path, list[str], list
         return target, [], ["not a readable NIR file"]
     if case == "env-obs-size":
         return target, ["--env", "grid"], ["23 observation values", "observes 21"]
+    if case == "env-action-space":
+        return target, ["--env", "gazebo"], ["acts in Discrete(9)", "'gazebo' expects Discrete(5)"]
     if case == "manifest-obs-size":
 
         def drop_one(data: dict[str, Any]) -> None:
@@ -763,7 +765,7 @@ def _bad_input(case: str, plain: Path, tmp: Path) -> tuple[Path, list[str], list
 
 
 BAD_CASES = [
-    "missing", "truncated", "text", "env-obs-size", "manifest-obs-size", "nan", "moon",
+    "missing", "truncated", "text", "env-obs-size", "env-action-space", "manifest-obs-size", "nan", "moon",
     "old-revision", "backend", "precision-lava", "precision-ref",
 ]  # fmt: skip
 

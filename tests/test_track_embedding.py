@@ -116,6 +116,7 @@ def test_eval_of_the_nir_file_and_of_the_run_without_the_track_file(
     assert "SNN steer/ring (tracks/ring.toml)" in out and "note:" not in out
     record = json.loads((tmp_path / "e.json").read_text())
     assert record["track"] == RING and record["track_override"] is False
+    assert record["track_source"] == "run"
     # a run directory on another backend goes through the export
     _invoke("eval", str(moved["run"]), "--backend", "nir-ref", "--episodes", "1",
             "--out", str(tmp_path / "run-nir"))  # fmt: skip
@@ -134,6 +135,7 @@ def test_another_track_is_allowed_and_recorded(moved: dict[str, Path], tmp_path:
     assert "note: track small_S is not the track the policy was trained on" in out
     record = json.loads((tmp_path / "e.json").read_text())
     assert record["track"] == "small_S" and record["track_override"] is True
+    assert record["track_source"] == "--track"
     out = _invoke("eval", str(moved["nir"]), "--backend", "nir-ref", "--episodes", "1",
                   "--env", "steer", "--track", "small_S", "--out", str(tmp_path / "n"))  # fmt: skip
     assert "note: track small_S" in out

@@ -31,7 +31,6 @@ def run_eval(
     track: str | None = None,
 ) -> dict[str, Any]:
     """Evaluate a run's torch policy; write and return the eval record."""
-    from snnkart.envs.tracks import track_sha256
     from snnkart.eval.episodes import EvalSummary, write_eval
     from snnkart.eval.video import check_video_path
     from snnkart.rl.trained import TorchPredictor, load_run
@@ -41,11 +40,9 @@ def run_eval(
         if render:
             raise UsageError("choose either --render (a window) or --video (a file), not both")
     run = load_run(run_dir, checkpoint)
-    chosen, given, trained = _tracks(run, track)
-    override = track_sha256(chosen) != trained["sha256"]
-    label = track_label(chosen.name, given)
+    choice = _track_choice(run, track)
     mode = "human" if render else ("rgb_array" if video is not None else None)
-    env = run.config.make_env(render_mode=mode, track=chosen)
+    env = run.config.make_env(render_mode=mode, track=choice.track)
     results = _episodes(env, TorchPredictor(run, seed=seed), episodes, seed, video, reporter)
     summary = EvalSummary.of(results)
     path = out or run_dir / "eval.json"
@@ -55,22 +52,18 @@ def run_eval(
         "global_step": run.meta.get("global_step"),
         "policy": run.config.policy,
         "env": run.config.env,
-        "track": chosen.name,
-        "track_given": str(given),
-        "track_sha256": track_sha256(chosen),
-        "trained_track": trained,
-        "track_override": override,
+        **choice.record(),
         "first_seed": seed,
     }
     record = write_eval(path, summary, results, extra)
     reporter.message(
-        f"{run.config.policy.upper()} {run.config.env}/{label} "
+        f"{run.config.policy.upper()} {run.config.env}/{choice.label} "
         f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: {_describe(summary)}"
     )
-    if override:
+    if choice.override:
         reporter.message(
-            f"note: track {label} is not the track the policy was trained on "
-            f"({track_label(trained['name'], trained['given'])})"
+            f"note: track {choice.label} is not the track the policy was trained on "
+            f"({track_label(choice.trained['name'], choice.trained['given'])})"
         )
     reporter.message(f"results written to {path}")
     return record
@@ -101,17 +94,17 @@ def _episodes(
         )
 
 
-def _tracks(run: Any, track: str | None) -> tuple[Any, str, dict[str, str]]:
-    """The track to evaluate on (``--track``, else the one trained on), how it was named, and
-    the trained track's name, given path and hash."""
+def _track_choice(run: Any, track: str | None) -> Any:
+    """The track to evaluate on: ``--track``, else the one the run was trained on."""
     from snnkart.envs.tracks import embed_track, load_track
+    from snnkart.eval.policy_env import TrackChoice
 
     assert run.track is not None
     trained = embed_track(run.track, run.config.track)
     del trained["toml"]
     if track is not None:
-        return load_track(track), track, trained
-    return run.track, run.config.track, trained
+        return TrackChoice(load_track(track), track, "--track", trained)
+    return TrackChoice(run.track, run.config.track, "run", trained)
 
 
 def _describe(summary: Any) -> str:

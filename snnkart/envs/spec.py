@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
+import numpy as np
 
 from snnkart.envs import make
 
@@ -118,3 +119,22 @@ def spec_differences(saved: dict[str, Any], spec: dict[str, Any]) -> list[str]:
                 else f"{key}: {saved.get(key)!r} vs {spec[key]!r}"
             )
     return diffs
+
+
+def fit_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
+    """Why a policy made for the saved spec cannot act in ``env`` at all (observation size,
+    action space), or None. Weaker than :func:`spec_differences`: a deployed policy may be
+    run on another track or env when it fits, a resumed run may not."""
+    name = getattr(env.unwrapped, "env_name", "?")
+    obs_dim = int(np.prod(env.observation_space.shape or (0,)))
+    if saved.get("obs_dim") != obs_dim:
+        return (
+            f"the policy takes {saved.get('obs_dim')} observation values but env {name!r} "
+            f"observes {obs_dim}; deploy it on the env it was trained on ({saved.get('env')})"
+        )
+    if saved.get("action_space") and str(env.action_space) != saved["action_space"]:
+        return (
+            f"the policy acts in {saved['action_space']} but env {name!r} expects "
+            f"{env.action_space}"
+        )
+    return None

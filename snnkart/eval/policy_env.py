@@ -6,8 +6,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from snnkart.contract.manifest import Manifest
 from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.errors import DeployError
@@ -19,7 +17,7 @@ class TrackChoice:
 
     track: Track
     given: str  # how the user named it, or how the training run named it if embedded
-    source: str  # "--track", "embedded" (in the manifest) or "name" (a v1 manifest's)
+    source: str  # "--track", "run" (trained on), "embedded" (in the manifest), "name" (v1)
     trained: dict[str, str]  # name, given and sha256 of the trained track
 
     @property
@@ -77,8 +75,8 @@ def resolve_track(manifest: Manifest, track: str | None) -> TrackChoice:
 def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | None) -> Any:
     """The env the manifest describes (optionally another track or env), checked to fit;
     ``track`` None: the manifest's own (see :func:`resolve_track`)."""
-    from snnkart.envs import ENV_IDS, make, resolve_env_name
-    from snnkart.envs.spec import revision_mismatch
+    from snnkart.envs import make, resolve_env_name
+    from snnkart.envs.spec import fit_problem, revision_mismatch
     from snnkart.envs.tracks import TrackError
 
     spec = manifest.env
@@ -95,8 +93,6 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
     except ValueError as exc:
         where = "--env" if env else "the manifest's env"
         raise DeployError(f"{where}: {exc}") from exc
-    if resolved not in ENV_IDS:
-        raise DeployError(f"unknown env {name!r}")
     if track is None or isinstance(track, str):
         track = resolve_track(manifest, track).track
     kwargs: dict[str, Any] = {
@@ -109,17 +105,8 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
         gym_env = make(resolved, **kwargs)
     except (TrackError, ValueError, TypeError) as exc:
         raise DeployError(f"cannot make env {resolved!r}: {exc}") from exc
-    obs_dim = int(np.prod(gym_env.observation_space.shape or (0,)))
-    if obs_dim != manifest.obs_dim:
+    problem = fit_problem({**spec, "obs_dim": manifest.obs_dim}, gym_env)
+    if problem:
         gym_env.close()
-        raise DeployError(
-            f"the policy takes {manifest.obs_dim} observation values but env {resolved!r} "
-            f"observes {obs_dim}; deploy it on the env it was trained on ({spec.get('env')})"
-        )
-    if spec.get("action_space") and str(gym_env.action_space) != spec["action_space"]:
-        gym_env.close()
-        raise DeployError(
-            f"the policy acts in {spec['action_space']} but env {resolved!r} expects "
-            f"{gym_env.action_space}"
-        )
+        raise DeployError(problem)
     return gym_env
