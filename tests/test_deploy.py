@@ -604,6 +604,37 @@ def test_lava_runs_foreign_chains_of_one_and_three_layers_bit_exact(
     assert np.all(spikes < 0.9 * windows * T * np.asarray(sizes)), spikes
 
 
+@pytest.mark.lava
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("how", ["close", "kill"])
+def test_a_stopped_lava_worker_leaves_no_open_files_and_is_stopped_once(
+    how: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After close() or kill(), the worker's pipes and its stderr file are closed (the tail of
+    its output is kept for messages), and a second kill() signals nothing: the session's id
+    may be another process's by then."""
+    from snnkart.backends import lava_sim
+
+    chain = chain_from_graph(_plain_chain_graph((8,), n_in=3, seed=1), DT)
+    worker = LavaWorker(lava_spec(chain, 4, "float64", None))
+    worker.window(np.zeros((4, 8)))
+    stops: list[int] = []
+    real = lava_sim.stop_session
+    monkeypatch.setattr(
+        lava_sim, "stop_session", lambda sid, **kw: (stops.append(sid), real(sid, **kw))
+    )
+    getattr(worker, how)()
+    assert worker.proc.poll() is not None
+    assert worker.stderr.closed and worker.proc.stdin.closed and worker.proc.stdout.closed
+    assert worker not in lava_sim._LIVE
+    assert not lava_sim._session_members(worker.proc.pid)
+    worker.kill()
+    worker.close()
+    assert stops == [worker.proc.pid], stops
+    with pytest.raises(lava_sim.LavaBackendError, match="stopped"):
+        worker.window(np.zeros((4, 8)))
+
+
 @pytest.mark.parametrize("kind", ["CubaLIF", "Delay"])
 def test_foreign_graph_with_unsupported_node_is_refused(kind: str) -> None:
     nodes: dict[str, Any] = {

@@ -76,8 +76,10 @@ class LavaWorker:
 
     def __init__(self, spec: LavaSpec) -> None:
         self.stderr = tempfile.TemporaryFile()
+        self._tail = ""  # the last lines of stderr, kept when the file is closed
         env = {**os.environ, "PYTHONUNBUFFERED": "1", "SNNKART_FAULT_PGID": str(os.getpgrp())}
         self.closed = False
+        self._stopped = False  # the session has been stopped: nothing left to kill
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "snnkart.backends.lava_worker"],
             stdin=subprocess.PIPE,
@@ -99,9 +101,11 @@ class LavaWorker:
             raise
 
     def _stderr_tail(self) -> str:
+        """The worker's last 15 lines of output."""
         if self.stderr.closed:
-            return ""
-        self.stderr.seek(0)
+            return self._tail
+        self.stderr.seek(0, os.SEEK_END)
+        self.stderr.seek(max(0, self.stderr.tell() - 16384))
         text = self.stderr.read().decode(errors="replace").strip()
         return "\n".join(text.splitlines()[-15:])
 
@@ -214,15 +218,25 @@ class LavaWorker:
             self._finish()
 
     def kill(self) -> None:
-        """Stop the worker and every Lava process it forked (they share its session)."""
+        """Stop the worker and every Lava process it forked (they share its session); once:
+        the session's id may belong to other processes after that."""
         self.closed = True
+        if self._stopped:
+            return
         stop_session(self.proc.pid)
         with contextlib.suppress(subprocess.TimeoutExpired):
             self.proc.wait(timeout=1)
         self._finish()
 
     def _finish(self) -> None:
+        """The session is stopped: keep the output's tail, close the pipes and the file."""
+        self._stopped = True
         _LIVE.discard(self)
+        self._tail = self._stderr_tail()
+        for stream in (self.stderr, self.proc.stdin, self.proc.stdout):
+            with contextlib.suppress(OSError):
+                if stream is not None:
+                    stream.close()
 
 
 def _session_members(sid: int) -> list[int]:
