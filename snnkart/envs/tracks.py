@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
-from snnkart.envs.geometry import segment_distance, segments_cross
+from snnkart.envs.geometry import box_segment_distance, point_segment_distance
 from snnkart.errors import TrackError
 
 if sys.version_info >= (3, 11):
@@ -133,11 +133,6 @@ class Track:
 
 def _num(x: float) -> str:
     return str(int(x)) if float(x).is_integer() else repr(float(x))
-
-
-def point_segment_distance(p: tuple[float, float], seg: np.ndarray) -> np.ndarray:
-    """Distance from point ``p`` to each segment row ``(ax, ay, bx, by)`` of ``seg``."""
-    return segment_distance(p[0], p[1], seg[:, 0], seg[:, 1], seg[:, 2], seg[:, 3])
 
 
 def load_track(track: str | Path | Track) -> Track:
@@ -309,34 +304,6 @@ def _validate_geometry(track: Track, where: _Where) -> None:
                 f"{where('spawn.position')}: the kart can spawn touching checkpoints[{i}] "
                 f"({gap:.1f} px away); move the spawn or the checkpoint"
             )
-
-
-def box_segment_distance(centre: tuple[float, float], half: float, seg: np.ndarray) -> float:
-    """Smallest distance between the square ``centre +- half`` and the segments ``seg``.
-
-    Two disjoint convex polygons are closest at a vertex of one of them, so it suffices to
-    check the box corners against the segments and the segment ends against the box.
-    """
-    cx, cy = centre
-    corners = [(cx + sx * half, cy + sy * half) for sx in (-1, 1) for sy in (-1, 1)]
-    best = min(float(point_segment_distance(c, seg).min()) for c in corners)
-    ends = seg.reshape(-1, 2)
-    dx = np.maximum(np.abs(ends[:, 0] - cx) - half, 0.0)
-    dy = np.maximum(np.abs(ends[:, 1] - cy) - half, 0.0)
-    best = min(best, float(np.hypot(dx, dy).min()))
-    if best > 0.0 and _segments_cross_box(centre, half, seg):
-        return 0.0
-    return best
-
-
-def _segments_cross_box(centre: tuple[float, float], half: float, seg: np.ndarray) -> bool:
-    cx, cy = centre
-    corners = [(cx - half, cy - half), (cx + half, cy - half), (cx + half, cy + half),
-               (cx - half, cy + half)]  # fmt: skip
-    for (x0, y0), (x1, y1) in zip(corners, corners[1:] + corners[:1], strict=True):
-        if any(bool(segments_cross(x0, y0, x1, y1, s)) for s in seg):
-            return True
-    return False
 
 
 class _Where:
