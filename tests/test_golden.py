@@ -9,7 +9,9 @@ import json
 from pathlib import Path
 
 import pytest
-from golden.harness import EXPECTED, differences, produce
+from golden.harness import DEPLOYS, EXPECTED, deploy, describe_export, differences, produce
+
+OLD_EXPORT = Path(__file__).parent / "data/policies/grid-snn-nir-8ddd6dd/policy.nir"
 
 
 @pytest.mark.lava
@@ -23,6 +25,22 @@ def test_outputs_equal_the_golden_values(tmp_path: Path) -> None:
     assert expected["train"]["snn"]["progress"]["global_step"] == 1024
     assert len(expected["deploy"]["rasters"]) == 5
     assert len(set(expected["train"]["ann"]["actions"])) > 1
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(300)
+def test_a_nir_export_written_before_the_refactor_loads_and_deploys_the_same(
+    tmp_path: Path,
+) -> None:
+    """``OLD_EXPORT`` was written by ``snnkart export`` at commit 8ddd6dd, before the layout
+    refactor moved anything, from the committed grid SNN: today's code reads the same graph
+    and manifest from it, and deploys it with the golden results on every backend."""
+    expected = json.loads(EXPECTED.read_text())
+    diff = differences(expected["export"], describe_export(OLD_EXPORT))
+    assert not diff, diff[:10]
+    actual = json.loads(json.dumps(deploy(tmp_path, OLD_EXPORT, DEPLOYS)))
+    diff = differences(expected["deploy"], actual)  # also the rasters of every backend
+    assert not diff, diff[:10]
 
 
 def test_differences_are_found() -> None:

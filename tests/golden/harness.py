@@ -118,10 +118,15 @@ def _torch_actions(run_dir: Path, steps: int) -> list[Any]:
 
 
 def _export(tmp: Path) -> tuple[Path, dict[str, Any]]:
-    import nir
-
     nir_path = tmp / "fixture.nir"
     _invoke(["export", "--nir", str(FIXTURE), "--out", str(nir_path)])
+    return nir_path, describe_export(nir_path)
+
+
+def describe_export(nir_path: Path) -> dict[str, Any]:
+    """The graph's nodes and edges, the hash of every array, and the manifest."""
+    import nir
+
     graph = nir.read(str(nir_path))
     arrays = {}
     for name, node in sorted(graph.nodes.items()):
@@ -129,7 +134,7 @@ def _export(tmp: Path) -> tuple[Path, dict[str, Any]]:
             if isinstance(value, np.ndarray) and value.dtype != object:
                 arrays[f"{name}.{field}"] = _sha([value])
     manifest = json.loads(nir_path.with_suffix(".manifest.json").read_text())
-    return nir_path, {
+    return {
         "nodes": sorted(graph.nodes),
         "edges": sorted(map(list, graph.edges)),
         "arrays": arrays,
@@ -137,15 +142,20 @@ def _export(tmp: Path) -> tuple[Path, dict[str, Any]]:
     }
 
 
-def _deploy(tmp: Path, nir_path: Path) -> dict[str, Any]:
+DEPLOYS = (
+    ("nir-ref", "float32", 2),
+    ("nir-ref", "float64", 1),
+    ("nir-ref", "fixed", 2),
+    ("lava-sim", "float", 1),
+    ("lava-sim", "fixed", 1),
+)
+
+
+def _deploy(
+    tmp: Path, nir_path: Path, runs: tuple[tuple[str, str, int], ...] = DEPLOYS
+) -> dict[str, Any]:
     out: dict[str, Any] = {}
-    for backend, precision, episodes in (
-        ("nir-ref", "float32", 2),
-        ("nir-ref", "float64", 1),
-        ("nir-ref", "fixed", 2),
-        ("lava-sim", "float", 1),
-        ("lava-sim", "fixed", 1),
-    ):
+    for backend, precision, episodes in runs:
         target = tmp / f"deploy-{backend}-{precision}"
         _invoke(
             [
@@ -171,8 +181,14 @@ def _deploy(tmp: Path, nir_path: Path) -> dict[str, Any]:
                 if k in record
             }
         )
-    out["rasters"] = _rasters(nir_path, steps=60)
+    if runs is DEPLOYS:
+        out["rasters"] = _rasters(nir_path, steps=60)
     return out
+
+
+def deploy(tmp: Path, nir_path: Path, runs: tuple[tuple[str, str, int], ...]) -> dict[str, Any]:
+    """``snnkart deploy`` of ``nir_path`` for each (backend, precision, episodes) of ``runs``."""
+    return _deploy(tmp, nir_path, runs)
 
 
 def _rasters(nir_path: Path, steps: int) -> dict[str, Any]:
