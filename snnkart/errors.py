@@ -86,3 +86,11 @@ class ReplayError(SnnkartError, ValueError):
 
 class UsageError(SnnkartError, ValueError):
     """Command options that do not go together or are out of range."""
+
+
+class ProfileError(SnnkartError, ValueError):
+    """A hardware profile that cannot be used (missing or unknown keys, bad values)."""
+
+
+class ReportError(SnnkartError, ValueError):
+    """An energy report cannot be made from the inputs given."""

@@ -43,3 +43,15 @@ def write_json(path: str | Path, data: Any, indent: int | None = 2) -> None:
     """Write ``data`` as JSON (with a final newline) to ``path``, atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(data, indent=indent) + "\n")
+
+
+def write_text(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path``, atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def write_bytes(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path``, atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)

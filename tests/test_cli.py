@@ -57,15 +57,6 @@ def test_cli_startup_does_not_import_heavy_packages(code: str) -> None:
     assert json.loads(result.stdout.strip().splitlines()[-1]) == []
 
 
-@pytest.mark.parametrize("command", ["report"])
-def test_unimplemented_commands_exit_3(command: str) -> None:
-    result = run(command, timeout=30)
-    assert result.returncode == 3
-    assert "not implemented yet" in result.stderr
-    assert f"snnkart {command}" in result.stderr
-    assert "Traceback" not in result.stderr
-
-
 def test_play_headless_with_max_steps() -> None:
     result = run("play", "--env", "grid", "--track", "small_S", "--max-steps", "20", timeout=60)
     assert result.returncode == 0, result.stdout + result.stderr

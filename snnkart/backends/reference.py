@@ -94,6 +94,18 @@ class Float32Chain(_Simulator):
         self.theta = [layer.threshold.astype(f32) for layer in chain.layers]
         self.v_reset = [layer.v_reset.astype(f32) for layer in chain.layers]
 
+    membranes: np.ndarray | None = None  # [T, N] before reset, while trace() runs
+
+    def trace(self, current: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The window's raster and every neuron's membrane before its reset, ``[T, N]``."""
+        self.membranes = np.zeros((self.T, self.offsets[-1]), dtype=np.float32)
+        try:
+            raster = self.window(current)
+            membranes = self.membranes
+        finally:
+            self.membranes = None
+        return raster, membranes
+
     def _window(self, current: np.ndarray) -> np.ndarray:
         T, offsets = self.T, self.offsets
         raster = np.zeros((T, offsets[-1]), dtype=bool)
@@ -110,6 +122,8 @@ class Float32Chain(_Simulator):
                     v[i] = self.beta[i] * v[i] + inp
                 else:
                     v[i] = self.beta[i] * v[i] + self.gain[i] * inp + self.leak[i]
+                if self.membranes is not None:
+                    self.membranes[t, offsets[i] : offsets[i + 1]] = v[i]
                 s = v[i] - self.theta[i] > 0
                 v[i][s] = self.v_reset[i][s]
                 raster[t, offsets[i] : offsets[i + 1]] = s

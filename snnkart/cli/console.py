@@ -79,3 +79,28 @@ class _Task:
     def step(self) -> None:
         if self.sub is not None:
             self.bar.advance(self.sub)
+
+
+def print_headline(report: dict[str, Any], rows: list[dict[str, str]]) -> None:
+    """The energy report's headline: a warning when the SNN does not drive, then the table of
+    the primary ANN's comparisons (all of them are in report.md)."""
+    from rich.table import Table
+
+    console = Console()
+    if not report["drives"]:
+        rate = report["snn"]["task"]["success_rate"]
+        console.print(
+            f"[bold red]WARNING: the spiking policy does not drive (success {rate:.0%} < 80 %): "
+            "its energy numbers are not a result.[/]"
+        )
+    primary = "run" if "run" in report["ann"] else "same_width"
+    label = report["ann"][primary]["label"]
+    table = Table(title=f"energy per inference: SNN vs {label}")
+    keys = ["SNN on", "SNN nJ/inference", "ANN on", "ANN nJ/inference", "SNN/ANN",
+            "SNN success", "ANN success"]  # fmt: skip
+    for key in keys:
+        table.add_column(key, justify="right")
+    for row in rows:
+        if row["ANN"] == label:
+            table.add_row(*(row[k] for k in keys))
+    console.print(table)

@@ -12,7 +12,7 @@ from typing import Annotated, NoReturn, TypeVar
 
 import typer
 
-from snnkart.cli.console import ConsoleReporter
+from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.errors import SnnkartError
 
 T = TypeVar("T")
@@ -37,14 +37,6 @@ TrackOpt = Annotated[
 def _fail(message: str, code: int = 2) -> NoReturn:
     typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
     raise typer.Exit(code)
-
-
-def _not_yet(command: str, what: str) -> NoReturn:
-    _fail(
-        f"`snnkart {command}` is not implemented yet in this version ({what}); "
-        "see the README's roadmap",
-        code=3,
-    )
 
 
 def _check_env_and_track(env: str, track: str) -> str:
@@ -339,9 +331,40 @@ def deploy(
 
 
 @app.command()
-def report() -> None:
-    """Energy report against the ANN baseline (not implemented yet)."""
-    _not_yet("report", "the energy report arrives with the energy issue")
+def report(
+    deploy_dir: Annotated[Path, typer.Argument(help="a deployment: the --out of snnkart deploy")],
+    ann: Annotated[
+        Path | None, typer.Option("--ann", help="an ANN run to compare with (trained, evaluated)")
+    ] = None,
+    profile: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--profile",
+            "-p",
+            help="hardware profile name or TOML file (repeat); default: every built-in one",
+        ),
+    ] = None,
+    host_profile: Annotated[
+        str, typer.Option(help="digital profile pricing the SNN's host-side work")
+    ] = "horowitz45_fp32",
+    sweep: Annotated[
+        Path | None, typer.Option(help="a bench_sparsity JSON: the accuracy-energy figure")
+    ] = None,
+    step: Annotated[int, typer.Option(help="env step shown in the raster figure")] = 20,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="directory (default: the deployment's)")
+    ] = None,
+) -> None:
+    """Energy per inference and per episode of the deployed spiking policy against the ANN
+    baseline on hardware profiles, with the task performance of both: report.json, .md, .html."""
+    from snnkart.app.report import run_report
+    from snnkart.report.document import headline
+
+    reporter = ConsoleReporter()
+    record = _guard(
+        lambda: run_report(deploy_dir, ann, profile, out, reporter, host_profile, sweep, step)
+    )
+    print_headline(record, headline(record))
 
 
 def _interrupted(exc: KeyboardInterrupt, what: str) -> NoReturn:

@@ -70,7 +70,7 @@ def run_deploy(
     if episodes < 1:
         raise DeployError(f"--episodes must be >= 1, got {episodes}")
     nir_path = Path(nir_path)
-    _, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
+    chain, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
     choice = resolve_track(manifest, track)
     gym_env = make_policy_env(manifest, env, choice.track)
     if out_dir is not None:
@@ -89,6 +89,7 @@ def run_deploy(
         "precision": precision if backend == "lava-sim" else primary.arithmetic,
         "nir_file": str(nir_path),
         "manifest": _manifest_summary(manifest),
+        "network": _network(chain),
         "env": {
             "env": gym_env.unwrapped.env_name,
             **choice.record(),
@@ -156,6 +157,17 @@ class _Run:
             },
             "quantization": None if primary.fixed is None else primary.fixed.describe(),
         }
+
+
+def _network(chain: Any) -> dict[str, Any]:
+    """The chain's shape, for the energy report's counts."""
+    return {
+        "n_in": chain.n_in,
+        "sizes": list(chain.sizes),
+        "n_out": chain.n_out,
+        "readout": chain.readout_weight is not None,
+        "input_scale": chain.input_scale is not None,
+    }
 
 
 def _manifest_summary(manifest: Manifest) -> dict[str, Any]:

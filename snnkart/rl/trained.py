@@ -35,6 +35,15 @@ class LoadedRun:
     track: Track | None = None
     """The track the policy was trained on (embedded in the checkpoint, or ``config.track``)."""
 
+    def actor_widths(self) -> tuple[int, ...]:
+        """The ANN actor's layer widths (obs, hidden..., actions), from its Linear layers."""
+        actor = self.policy.actor
+        modules = actor.modules() if isinstance(actor, torch.nn.Module) else []
+        linears = [m for m in modules if isinstance(m, torch.nn.Linear)]
+        if self.policy.kind != "ann" or not linears:
+            raise CheckpointError(f"{self.run_dir} is a {self.policy.kind} run, not an ANN run")
+        return (linears[0].in_features, *(m.out_features for m in linears))
+
     def track_record(self) -> dict[str, str]:
         """The trained track as manifests and records carry it (see ``embed_track``)."""
         assert self.track is not None

@@ -1,0 +1,278 @@
+"""``snnkart report``: the deployed spiking policy's energy against the ANN baseline.
+
+Counts come from the deployment (``deploy.json``: Lava's or the reference's counts, proven equal
+step by step); prices from hardware profiles; every energy in ``report.json`` is a list of
+``count x price`` terms naming the profile entry and its source.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from snnkart.app.reporter import Reporter
+from snnkart.energy.counts import AnnCounts, SnnCounts
+from snnkart.energy.pricing import Comparison, ann_terms, breakdown, snn_terms, total
+from snnkart.energy.profiles import (
+    DEFAULT_CHIPS,
+    DEFAULT_DIGITAL,
+    DEFAULT_HOST,
+    Profile,
+    load_profile,
+)
+from snnkart.errors import ReportError
+
+REPORT_SCHEMA = "snnkart/report/v1"
+DRIVES = 0.8
+"""Below this success rate the SNN does not drive, and the report says so before any energy."""
+
+
+def read_deploy(deploy_dir: Path) -> dict[str, Any]:
+    path = deploy_dir / "deploy.json" if deploy_dir.is_dir() else deploy_dir
+    if not path.is_file():
+        raise ReportError(
+            f"no deployment at {deploy_dir}: expected a directory with deploy.json, written by "
+            "snnkart deploy --out DIR"
+        )
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ReportError(f"{path}: not a readable deploy.json ({exc}); deploy again") from exc
+    if not str(record.get("schema", "")).startswith("snnkart/deploy/"):
+        raise ReportError(f"{path}: not a snnkart deploy record (schema {record.get('schema')!r})")
+    return record
+
+
+def _profiles(names: list[str] | None, host: str) -> tuple[list[Profile], list[Profile], Profile]:
+    loaded = [load_profile(n) for n in (names or [*DEFAULT_CHIPS, *DEFAULT_DIGITAL])]
+    chips = [p for p in loaded if p.kind == "neuromorphic"]
+    digital = [p for p in loaded if p.kind == "digital"]
+    if not chips or not digital:
+        raise ReportError(
+            "--profile: give at least one neuromorphic and one digital profile (the SNN runs "
+            f"on the first, the ANN on the second); got {', '.join(p.name for p in loaded)}"
+        )
+    host_profile = load_profile(host)
+    if host_profile.kind != "digital":
+        raise ReportError(f"--host-profile: {host_profile.name} is not a digital profile")
+    return chips, digital, host_profile
+
+
+def _memory_first(digital: list[Profile]) -> list[Profile]:
+    """The memory-inclusive digital profiles first: the fair baseline leads the sensitivity."""
+    return sorted(digital, key=lambda p: p["weight_read"] == 0)
+
+
+def _ann_run(ann_dir: Path, record: dict[str, Any]) -> tuple[AnnCounts, dict[str, Any]]:
+    """The user's ANN run: its widths, and its task performance on the deployment's episodes."""
+    from snnkart.eval.episodes import EvalSummary, run_episodes
+    from snnkart.rl.trained import TorchPredictor, load_run
+
+    run = load_run(ann_dir)
+    widths = run.actor_widths()
+    env = record["env"]
+    if run.config.env != env["env"]:
+        raise ReportError(
+            f"--ann {ann_dir} is a {run.config.env} run, the deployment drove {env['env']}; "
+            "compare policies of the same env"
+        )
+    trained = run.track_record()
+    if trained["sha256"] != env.get("track_sha256"):
+        raise ReportError(
+            f"--ann {ann_dir} was trained on track {trained['name']}, the deployment drove "
+            f"{env.get('track')}; compare on the same track"
+        )
+    gym_env = run.config.make_env(track=run.track)
+    episodes = len(record.get("episodes", [])) or 1
+    try:
+        results = run_episodes(gym_env, TorchPredictor(run, seed=record["first_seed"]),
+                               episodes, record["first_seed"])  # fmt: skip
+    finally:
+        gym_env.close()
+    summary = EvalSummary.of(results)
+    steps = sum(r.length for r in results)
+    task = {
+        "run": str(ann_dir), "global_step": run.meta.get("global_step"),
+        "episodes": episodes, "first_seed": record["first_seed"],
+        "success_rate": summary.success_rate, "mean_lap_time": summary.mean_lap_time,
+        "mean_return": summary.mean_return, "steps_per_episode": steps / episodes,
+    }  # fmt: skip
+    return AnnCounts(widths, run.config.action_mode, "ANN run"), task
+
+
+def _snn_section(snn: SnnCounts, record: dict[str, Any]) -> dict[str, Any]:
+    net, s = snn.net, record["summary"]
+    return {
+        "task": {
+            "success_rate": s["success_rate"],
+            "mean_lap_time": s["mean_lap_time"],
+            "mean_return": s["mean_return"],
+            "episodes": snn.episodes,
+            "steps_per_episode": snn.steps_per_episode,
+        },
+        "per_inference": {
+            "spikes": list(snn.spikes),
+            "synops_chip": list(snn.synops),
+            "neuron_updates": list(snn.neuron_updates),
+            "firing_rates": snn.firing_rates(),
+            "pipeline_overhead": {
+                "spikes": list(snn.overhead_spikes),
+                "synops_chip": list(snn.overhead_synops),
+                "neuron_updates": list(snn.overhead_neuron_updates),
+            },
+            "host_ops": [vars(op) for op in snn.host],
+        },
+        "neurobench": snn.neurobench(),
+        "footprint": snn.footprint(),
+        "latency": {
+            "logical_steps": net.num_steps,
+            "lava_steps_per_action": net.num_steps + net.depth,
+            "ms_per_env_step": record.get("timing", {}).get("ms_per_env_step"),
+            "backend": record["backend"],
+        },
+    }
+
+
+def _ann_section(ann: AnnCounts, task: dict[str, Any] | None) -> dict[str, Any]:
+    return {"label": ann.label, "widths": list(ann.widths), "macs": ann.macs,
+            "neurobench": ann.neurobench(), "footprint": ann.footprint(), "task": task}  # fmt: skip
+
+
+def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]],
+                 chips: list[Profile], digital: list[Profile], host: Profile) -> list[dict[str, Any]]:  # fmt: skip
+    rows = []
+    for chip in chips:
+        s_terms = snn_terms(snn, chip, host)
+        e_snn = total(s_terms)
+        for key, (ann, task) in anns.items():
+            for dig in digital:
+                a_terms = ann_terms(ann, dig)
+                e_ann = total(a_terms)
+                ann_steps = task["steps_per_episode"] if task else snn.steps_per_episode
+                cmp = Comparison(snn, ann, chip, host, dig)
+                rows.append({
+                    "snn_profile": chip.name, "host_profile": host.name, "ann": key,
+                    "ann_profile": dig.name, "snn_pj": e_snn, "ann_pj": e_ann,
+                    "ratio": e_snn / e_ann if e_ann else None,
+                    "snn_per_episode_pj": e_snn * snn.steps_per_episode,
+                    "ann_per_episode_pj": e_ann * ann_steps,
+                    "snn_breakdown_pj": breakdown(s_terms), "ann_breakdown_pj": breakdown(a_terms),
+                    "snn_terms": [t.as_dict() for t in s_terms],
+                    "ann_terms": [t.as_dict() for t in a_terms],
+                    "break_even": cmp.break_even(),
+                })  # fmt: skip
+    return rows
+
+
+def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
+    """The committed sparsity sweep, priced: each run's energy per inference on ``chip``."""
+    from snnkart.energy.counts import Network, host_ops
+
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ReportError(f"--sweep {path}: not a readable sweep JSON ({exc})") from exc
+    points = []
+    for run in data.get("runs", []):
+        net = Network(n_in=run["network"]["n_in"], sizes=tuple(run["sizes"]),
+                      n_out=run["network"]["n_out"], num_steps=run["num_steps"])  # fmt: skip
+        L = len(net.sizes)
+        counts = SnnCounts(
+            net, run["env_steps"], 1, tuple(run["spikes_per_step"]),
+            tuple([*run["synops_per_step"][:-1], 0.0]), tuple(run["neuron_updates_per_step"]),
+            (0.0,) * L, (0.0,) * L, (0.0,) * L,
+            tuple(host_ops(net, fixed_point=run.get("precision") == "fixed")),
+        )  # fmt: skip
+        points.append({**{k: run[k] for k in ("point", "seed", "num_steps", "sizes", "success_rate")},
+                       "synops": sum(counts.synops), "spikes": sum(counts.spikes),
+                       "energy_pj": total(snn_terms(counts, chip, host))})  # fmt: skip
+    net0 = points and data["runs"][0]["network"]
+    ann_pj = {}
+    if net0:
+        same = AnnCounts((net0["n_in"], 64, 64, net0["n_out"]))
+        ann_pj = {d.name: total(ann_terms(same, d)) for d in digital}
+    return {"file": str(path), "env": data.get("env"), "commit": data.get("commit"),
+            "profile": chip.name, "points": points, "ann_64_64_pj": ann_pj}  # fmt: skip
+
+
+def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
+                 host: str = DEFAULT_HOST, sweep: Path | None = None) -> dict[str, Any]:  # fmt: skip
+    """Everything the report says, as one JSON-ready record."""
+    record = read_deploy(deploy_dir)
+    chips, digital, host_profile = _profiles(profiles, host)
+    snn = SnnCounts.of_deploy(record)
+    net = snn.net
+    anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]] = {
+        "same_width": (AnnCounts((net.n_in, *net.sizes, net.n_out), net.action_mode,
+                                 f"ANN {'-'.join(map(str, net.sizes))} (same widths)"), None),
+    }  # fmt: skip
+    if ann_dir is not None:
+        anns["run"] = _ann_run(ann_dir, record)
+    success = record["summary"]["success_rate"]
+    return {
+        "schema": REPORT_SCHEMA,
+        "deploy": {
+            "file": str(deploy_dir),
+            "backend": record["backend"],
+            "precision": record["precision"],
+            "nir_file": record.get("nir_file"),
+            "env": record["env"]["env"],
+            "track": record["env"].get("track"),
+            "episodes": snn.episodes,
+            "env_steps": snn.env_steps,
+            "first_seed": record["first_seed"],
+            "parity": record.get("parity"),
+        },
+        "drives": success >= DRIVES,
+        "network": {
+            "n_in": net.n_in,
+            "sizes": list(net.sizes),
+            "n_out": net.n_out,
+            "num_steps": net.num_steps,
+            "encoding": net.encoding,
+        },
+        "snn": _snn_section(snn, record),
+        "ann": {key: _ann_section(a, task) for key, (a, task) in anns.items()},
+        "host_profile": host_profile.name,
+        "profiles": {p.name: p.describe() for p in [*chips, *digital, host_profile]},
+        "comparisons": _comparisons(snn, anns, chips, digital, host_profile),
+        "sensitivity": [
+            {
+                "snn_profile": c.name,
+                "ann_profile": d.name,
+                "rows": Comparison(snn, anns["same_width"][0], c, host_profile, d).sensitivity(),
+            }
+            for c in chips
+            for d in _memory_first(digital)
+        ],
+        "sweep": None if sweep is None else _sweep(sweep, chips[0], host_profile, digital),
+    }
+
+
+def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
+               out: Path | None, reporter: Reporter, host: str = DEFAULT_HOST,
+               sweep: Path | None = None, step: int = 0) -> dict[str, Any]:  # fmt: skip
+    """Build the report and write ``report.json``, ``report.md`` and ``report.html``."""
+    from snnkart.report.document import write_report
+
+    out = out or (deploy_dir if deploy_dir.is_dir() else deploy_dir.parent)
+    with reporter.progress("report", 3) as task:
+        report = build_report(deploy_dir, ann_dir, profiles, host, sweep)
+        task.advance()
+        trace = _trace(report, step)
+        task.advance()
+        paths = write_report(report, out, trace)
+        task.advance()
+    reporter.message(f"report written to {paths['html']} (and report.json, report.md)")
+    return report
+
+
+def _trace(report: dict[str, Any], step: int) -> Any:
+    """The raster of one env step, if the deployed NIR file is still there."""
+    from snnkart.eval.trace import trace_step
+
+    nir_file = report["deploy"].get("nir_file")
+    if not nir_file or not Path(nir_file).is_file():
+        return None
+    return trace_step(nir_file, step, seed=report["deploy"]["first_seed"])

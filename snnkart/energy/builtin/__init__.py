@@ -1,0 +1,1 @@
+"""The built-in hardware profiles (TOML package data; see snnkart.energy.profiles)."""

@@ -1,0 +1,254 @@
+"""Operation counts per inference (one env step): the spiking policy's, measured in a deployment,
+and an ANN's, from its layer widths.
+
+The SNN's counts split where the work runs:
+
+- **on the chip**: synaptic operations (spikes x fan-out, between spiking layers), neuron
+  updates (every neuron at every SNN step: clocked) and spikes, for the policy's T logical
+  steps, and apart from them the Lava pipeline's fill and drain steps (``overhead``);
+- **on the host** (priced as digital operations): the observation's normalisation, the first
+  layer's input current ``W1 z + b1`` (once per env step, current encoding), the readout
+  ``Wr (counts / T) + br`` from the last layer's spike counts, and the action's decoding.
+
+The last layer's spikes leave the chip for the host's readout; the deployment's counts list
+them with the readout's fan-out, which is host work, so they are not chip synaptic operations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from snnkart.errors import ReportError
+
+
+@dataclass(frozen=True)
+class Network:
+    """The deployed network's shape: inputs, spiking layer sizes, outputs, T."""
+
+    n_in: int
+    sizes: tuple[int, ...]
+    n_out: int
+    num_steps: int
+    encoding: str = "current"
+    readout: bool = True
+    input_scale: bool = False
+    action_mode: str = "discrete"
+
+    @classmethod
+    def of_deploy(cls, record: dict[str, Any]) -> Network:
+        net, manifest = record.get("network"), record.get("manifest", {})
+        if not net:
+            raise ReportError(
+                "the deploy.json has no network description (written by an older snnkart); "
+                "run snnkart deploy again"
+            )
+        return cls(
+            n_in=int(net["n_in"]),
+            sizes=tuple(int(s) for s in net["sizes"]),
+            n_out=int(net["n_out"]),
+            num_steps=int(manifest["num_steps"]),
+            encoding=str(manifest.get("encoding", "current")),
+            readout=bool(net.get("readout", True)),
+            input_scale=bool(net.get("input_scale", False)),
+            action_mode=str(manifest.get("action_mode", "discrete")),
+        )
+
+    @property
+    def depth(self) -> int:
+        """L: Dense delays between the spiking layers."""
+        return len(self.sizes) - 1
+
+    @property
+    def neurons(self) -> int:
+        return sum(self.sizes)
+
+    @property
+    def chip_synapses(self) -> int:
+        return sum(a * b for a, b in zip(self.sizes, self.sizes[1:], strict=False))
+
+    @property
+    def parameters(self) -> int:
+        """Weights and biases: first layer (host), the chip's layers, readout (host)."""
+        n1, last = self.sizes[0], self.sizes[-1]
+        chip = self.chip_synapses + sum(self.sizes[1:])
+        readout = (last * self.n_out + self.n_out) if self.readout else 0
+        return self.n_in * n1 + n1 + chip + readout
+
+
+@dataclass(frozen=True)
+class HostOp:
+    """One item of host-side work per inference: what it is, the operation, how many."""
+
+    what: str
+    op: str  # a digital profile's operation: mac, add, mult, weight_read
+    count: float
+
+
+def host_ops(net: Network, fixed_point: bool = False) -> list[HostOp]:
+    """The SNN's host-side work per inference (per env step)."""
+    n_in, n1, last, n_out, T = net.n_in, net.sizes[0], net.sizes[-1], net.n_out, net.num_steps
+    ops: list[HostOp] = []
+    if net.encoding == "rate":
+        ops += [
+            HostOp("rate encoding: (obs - low) / (high - low), clipped", "add", 3 * n_in),
+            HostOp("rate encoding: (obs - low) / (high - low)", "mult", n_in),
+            HostOp("rate encoding: compare a random number per input and step", "add", T * n_in),
+            HostOp("first layer: input spikes x W1, dense upper bound", "add", T * n_in * n1),
+            HostOp("first layer: bias per step", "add", T * n1),
+            HostOp("first layer: weight reads, dense upper bound", "weight_read", T * (n_in * n1 + n1)),
+        ]  # fmt: skip
+    else:
+        ops += [
+            HostOp("normalisation: obs - mean, clip to +-c", "add", 3 * n_in),
+            HostOp("normalisation: / std", "mult", n_in),
+            HostOp("first layer: W1 z, once per env step", "mac", n_in * n1),
+            HostOp("first layer: + b1", "add", n1),
+            HostOp("first layer: weight and bias reads", "weight_read", n_in * n1 + n1),
+        ]
+        if net.input_scale:
+            ops.append(HostOp("input scale", "mult", n_in))
+    if fixed_point:
+        ops.append(HostOp("fixed point: scale the current to integers", "mult", n1))
+    if net.readout:
+        ops += [
+            HostOp("readout: spike counts / T", "mult", last),
+            HostOp("readout: Wr rates", "mac", n_out * last),
+            HostOp("readout: + br", "add", n_out),
+            HostOp("readout: weight and bias reads", "weight_read", n_out * last + n_out),
+        ]
+    compares = n_out - 1 if net.action_mode == "discrete" else 2 * n_out
+    ops.append(HostOp("decoding: argmax or clip", "add", compares))
+    return ops
+
+
+@dataclass(frozen=True)
+class SnnCounts:
+    """The spiking policy's counts per inference, averaged over a deployment's env steps."""
+
+    net: Network
+    env_steps: int
+    episodes: int
+    spikes: tuple[float, ...]  # per layer
+    synops: tuple[float, ...]  # per layer, to the next spiking layer (0 for the last)
+    neuron_updates: tuple[float, ...]  # per layer, the T logical steps
+    overhead_spikes: tuple[float, ...]  # the pipeline's fill and drain steps
+    overhead_synops: tuple[float, ...]
+    overhead_neuron_updates: tuple[float, ...]
+    host: tuple[HostOp, ...] = field(default=())
+
+    @classmethod
+    def of_deploy(cls, record: dict[str, Any]) -> SnnCounts:
+        net = Network.of_deploy(record)
+        c = record["counts"]
+        n = int(c["env_steps"])
+        if n < 1:
+            raise ReportError("the deployment ran no env step; deploy at least one episode")
+        over = c.get("pipeline_overhead", {})
+        L = len(net.sizes)
+
+        def per_step(values: list[int] | None, chip_only: bool = False) -> tuple[float, ...]:
+            vals = [float(v) / n for v in (values or [0] * L)]
+            if chip_only:
+                vals[-1] = 0.0  # the last layer's fan-out is the host's readout
+            return tuple(vals)
+
+        return cls(
+            net=net,
+            env_steps=n,
+            episodes=len(record.get("episodes", [])) or 1,
+            spikes=per_step(c["spikes"]),
+            synops=per_step(c["synops"], chip_only=True),
+            neuron_updates=per_step(c["neuron_updates"]),
+            overhead_spikes=per_step(over.get("spikes")),
+            overhead_synops=per_step(over.get("synops"), chip_only=True),
+            overhead_neuron_updates=per_step(over.get("neuron_updates")),
+            host=tuple(host_ops(net, fixed_point=record.get("precision") == "fixed")),
+        )
+
+    def scaled(self, density: float) -> SnnCounts:
+        """The same policy with ``density`` times its spikes (and so its synaptic ops)."""
+
+        def s(v: tuple[float, ...]) -> tuple[float, ...]:
+            return tuple(density * x for x in v)
+
+        return SnnCounts(
+            self.net, self.env_steps, self.episodes, s(self.spikes), s(self.synops),
+            self.neuron_updates, s(self.overhead_spikes), s(self.overhead_synops),
+            self.overhead_neuron_updates, self.host,
+        )  # fmt: skip
+
+    @property
+    def steps_per_episode(self) -> float:
+        return self.env_steps / self.episodes
+
+    def firing_rates(self) -> list[float]:
+        """Spikes per neuron per SNN step, per layer."""
+        T = self.net.num_steps
+        return [s / (n * T) for s, n in zip(self.spikes, self.net.sizes, strict=True)]
+
+    def neurobench(self) -> dict[str, float]:
+        """NeuroBench-style counts per inference (Yik et al. 2025): effective MACs (real-valued
+        inputs: the host's first layer and readout), effective ACs (binary inputs: the chip's
+        synaptic ops) and dense ops (every input non-zero at every step), and the activation
+        sparsity (the fraction of neuron-steps without a spike)."""
+        net, T = self.net, self.net.num_steps
+        macs = sum(op.count for op in self.host if op.op == "mac")
+        first = net.n_in * net.sizes[0] * (1 if net.encoding == "current" else T)
+        readout = net.sizes[-1] * net.n_out if net.readout else 0
+        return {
+            "effective_macs": macs,
+            "effective_acs": sum(self.synops),
+            "dense_ops": first + T * net.chip_synapses + readout,
+            "activation_sparsity": 1.0 - sum(self.spikes) / (net.neurons * T),
+        }
+
+    def footprint(self) -> dict[str, int]:
+        """Parameters and state: the parameter count and its bytes at fp32 (NeuroBench's
+        footprint), the chip's weights at 8 bits as Lava's fixed point stores them, and the
+        neuron state (current and voltage per neuron)."""
+        net = self.net
+        return {
+            "parameters": net.parameters,
+            "parameter_bytes_fp32": 4 * net.parameters,
+            "chip_weight_bytes_int8": net.chip_synapses,
+            "state_variables": 2 * net.neurons,
+        }
+
+
+@dataclass(frozen=True)
+class AnnCounts:
+    """An MLP actor's counts per inference: ``widths`` = (n_in, hidden..., n_out)."""
+
+    widths: tuple[int, ...]
+    action_mode: str = "discrete"
+    label: str = ""
+
+    @property
+    def macs(self) -> int:
+        return sum(a * b for a, b in zip(self.widths, self.widths[1:], strict=False))
+
+    @property
+    def parameters(self) -> int:
+        return self.macs + sum(self.widths[1:])
+
+    def ops(self) -> list[HostOp]:
+        """Everything per inference, as digital operations (the same normalisation and
+        decoding as the SNN's host side, so neither side is spared them)."""
+        n_in, n_out = self.widths[0], self.widths[-1]
+        compares = n_out - 1 if self.action_mode == "discrete" else 2 * n_out
+        return [
+            HostOp("normalisation: obs - mean, clip to +-c", "add", 3 * n_in),
+            HostOp("normalisation: / std", "mult", n_in),
+            HostOp("layers: W x", "mac", self.macs),
+            HostOp("layers: + b", "add", sum(self.widths[1:])),
+            HostOp("weight and bias reads", "weight_read", self.parameters),
+            HostOp("decoding: argmax or clip", "add", compares),
+        ]
+
+    def neurobench(self) -> dict[str, float]:
+        return {"effective_macs": self.macs, "effective_acs": 0, "dense_ops": self.macs}
+
+    def footprint(self) -> dict[str, int]:
+        return {"parameters": self.parameters, "parameter_bytes_fp32": 4 * self.parameters,
+                "state_variables": 0}  # fmt: skip

@@ -1,0 +1,1 @@
+"""Report writing: figures (the only matplotlib importer), Markdown and self-contained HTML."""

@@ -1,0 +1,306 @@
+"""The energy report: counts against a hand-computed network, profiles that refuse bad input,
+every number of report.json recomputed as count x price, and the report as a browser shows it."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import math
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from snnkart.energy.counts import AnnCounts, SnnCounts
+from snnkart.energy.pricing import Comparison, ann_terms, snn_terms, total
+from snnkart.energy.profiles import BUILTIN, load_profile, parse_profile
+from snnkart.errors import ProfileError
+
+ROOT = Path(__file__).resolve().parents[1]
+FIXTURE = ROOT / "tests" / "data" / "policies" / "grid-snn"
+SNNKART = [sys.executable, "-m", "snnkart.cli"]
+
+
+def _tiny_record() -> dict[str, Any]:
+    """3 inputs -> 4 -> 2 spiking -> 2 actions, T = 2, two env steps. Over the two steps layer 1
+    fires 6 spikes, layer 2 fires 2; fan-out 2 (to layer 2) and 2 (the readout)."""
+    return {
+        "schema": "snnkart/deploy/v1", "backend": "nir-ref", "precision": "float64",
+        "manifest": {"num_steps": 2, "encoding": "current", "action_mode": "discrete"},
+        "network": {"n_in": 3, "sizes": [4, 2], "n_out": 2, "readout": True, "input_scale": False},
+        "counts": {"env_steps": 2, "spikes": [6, 2], "synops": [12, 4], "neuron_updates": [16, 8],
+                   "pipeline_overhead": {"spikes": [0, 0], "synops": [0, 0],
+                                         "neuron_updates": [0, 0]}},
+        "episodes": [{"seed": 0}],
+    }  # fmt: skip
+
+
+def test_counts_and_energy_of_a_hand_computed_network() -> None:
+    snn = SnnCounts.of_deploy(_tiny_record())
+    assert snn.spikes == (3.0, 1.0)
+    assert snn.synops == (6.0, 0.0)  # the last layer's fan-out is the host's readout
+    assert snn.neuron_updates == (8.0, 4.0)
+    assert snn.firing_rates() == [3 / 8, 1 / 4]
+    host = {op: sum(h.count for h in snn.host if h.op == op) for op in ("mac", "add", "mult")}
+    # normalise 3 sub + 6 clip compares, b1 4, br 2, argmax 1 | W1 12 + Wr 4 | /std 3, /T 2
+    assert host == {"add": 9 + 4 + 2 + 1, "mac": 12 + 4, "mult": 3 + 2}
+    loihi, fp32, sram = (
+        load_profile(n) for n in ("loihi1", "horowitz45_fp32", "horowitz45_fp32_sram")
+    )
+    # chip: 6 synops x 23.6 + 12 neuron updates x 81 + 4 spikes x 1.7 = 1120.4 pJ
+    # host (fp32): 16 MACs x 4.6 + 16 adds x 0.9 + 5 mults x 3.7 = 106.5 pJ
+    assert total(snn_terms(snn, loihi, fp32)) == pytest.approx(1120.4 + 106.5)
+    assert total(snn_terms(snn, loihi, sram)) == pytest.approx(1226.9 + 5.0 * (16 + 6))
+    ann = AnnCounts((3, 4, 2, 2))
+    assert ann.macs == 24 and ann.parameters == 32
+    # 24 MACs x 4.6 + (8 biases + 9 normalise + 1 argmax) x 0.9 + 3 x 3.7 = 137.7 pJ
+    assert total(ann_terms(ann, fp32)) == pytest.approx(137.7)
+    assert total(ann_terms(ann, sram)) == pytest.approx(137.7 + 32 * 5.0)
+    nb = snn.neurobench()
+    assert nb["effective_acs"] == 6 and nb["effective_macs"] == 16
+    assert nb["dense_ops"] == 12 + 2 * 8 + 4
+    assert nb["activation_sparsity"] == pytest.approx(1 - 4 / 12)
+
+
+def test_break_even_solves_for_the_spike_density() -> None:
+    snn = SnnCounts.of_deploy(_tiny_record())
+    fp32, truenorth = load_profile("horowitz45_fp32"), load_profile("truenorth")
+    ann = AnnCounts((3, 64, 64, 2))  # 4,352 MACs: dear enough for the tiny SNN to win
+    cmp = Comparison(snn, ann, truenorth, fp32, fp32)
+    be = cmp.break_even()
+    d = be["density"]
+    # at the break-even density the SNN costs exactly what the ANN does
+    assert total(snn_terms(snn.scaled(d), truenorth, fp32)) == pytest.approx(cmp.energies()[1])
+    assert d > 1.0 and cmp.ratio() < 1.0
+    # Loihi's clocked neuron updates can cost more than a small ANN whatever the spikes
+    small = Comparison(snn, AnnCounts((3, 2, 2)), load_profile("loihi1"), fp32, fp32)
+    assert small.break_even()["density"] is None
+
+
+@pytest.mark.parametrize("name", BUILTIN)
+def test_builtin_profiles_load_with_sources(name: str) -> None:
+    profile = load_profile(name)
+    assert profile.prices and all(p.source and p.low <= p.value <= p.high
+                                  for p in profile.prices.values())  # fmt: skip
+    linked = ROOT / "hardware" / f"{name}.toml"
+    assert linked.read_text() == (ROOT / "snnkart/energy/builtin" / f"{name}.toml").read_text()
+
+
+GOOD = (ROOT / "snnkart/energy/builtin/loihi1.toml").read_text()
+
+
+@pytest.mark.parametrize(
+    ("edit", "fragments"),
+    [
+        (lambda t: t.replace("[prices.spike]", "[prices.spiky]"),
+         ["prices.spike", "missing"]),
+        (lambda t: t.replace("value = 23.6", "value = -23.6"),
+         ["prices.synaptic_op.value", "cannot be negative"]),
+        (lambda t: t.replace('unit = "pJ"', 'unit = "kWh"', 1),
+         ["prices.synaptic_op.unit", "'kWh'", "fJ, pJ, nJ, uJ"]),
+        (lambda t: "colour = 'blue'\n" + t, ["unknown key 'colour'"]),
+        (lambda t: t.replace('tag = "pre-silicon"', 'tag = "rumour"', 1),
+         ["prices.synaptic_op.tag", "'rumour'", "measured"]),
+        (lambda t: t.replace('source = "Davies', 'sauce = "Davies', 1),
+         ["prices.synaptic_op.sauce", "unknown key"]),
+    ],
+    ids=["missing", "negative", "unit", "unknown-key", "tag", "price-key"],
+)  # fmt: skip
+def test_bad_profiles_are_refused_with_file_key_and_fix(edit: Any, fragments: list[str],
+                                                        tmp_path: Path) -> None:  # fmt: skip
+    path = tmp_path / "mine.toml"
+    path.write_text(edit(GOOD))
+    with pytest.raises(ProfileError) as info:
+        load_profile(path)
+    message = str(info.value)
+    assert str(path) in message
+    for fragment in fragments:
+        assert fragment in message, message
+    parse_profile(GOOD, "ok")  # the unedited file is fine
+
+
+def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*SNNKART, *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def deployed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The committed grid SNN, exported and deployed on the reference in fixed point."""
+    tmp = tmp_path_factory.mktemp("deployed")
+    assert _cli("export", "--nir", str(FIXTURE), "--out", str(tmp / "policy.nir")).returncode == 0
+    result = _cli("deploy", str(tmp / "policy.nir"), "--backend", "nir-ref", "--precision",
+                  "fixed", "--episodes", "3", "--out", str(tmp / "deploy"))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    return tmp / "deploy"
+
+
+@pytest.fixture(scope="module")
+def ann_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short grid ANN run on small_S (the fixture's env and track)."""
+    run = tmp_path_factory.mktemp("ann") / "run"
+    result = _cli("train", "--env", "grid", "--policy", "ann", "--track", "small_S", "--steps",
+                  "2048", "--seed", "3", "--out", str(run))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    return run
+
+
+@pytest.fixture(scope="module")
+def report(deployed: Path, ann_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("report")
+    sweep = out / "sweep.json"
+    sweep.write_text(json.dumps(_sweep_from(deployed)))
+    result = _cli("report", str(deployed), "--ann", str(ann_run), "--sweep", str(sweep),
+                  "--step", "5", "--out", str(out))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "energy per inference" in result.stdout and "loihi1" in result.stdout
+    return out
+
+
+def _sweep_from(deployed: Path) -> dict[str, Any]:
+    """A two-point sweep file made of the deployment's own counts (and half of them)."""
+    record = json.loads((deployed / "deploy.json").read_text())
+    c, n = record["counts"], record["counts"]["env_steps"]
+    runs = []
+    for point, k in (("measured", 1.0), ("half", 0.5)):
+        runs.append({
+            "point": point, "seed": 1, "num_steps": record["manifest"]["num_steps"],
+            "sizes": record["network"]["sizes"], "network": record["network"],
+            "precision": "fixed", "success_rate": record["summary"]["success_rate"],
+            "env_steps": n, "spikes_per_step": [k * s / n for s in c["spikes"]],
+            "synops_per_step": [k * s / n for s in c["synops"]],
+            "neuron_updates_per_step": [s / n for s in c["neuron_updates"]],
+        })  # fmt: skip
+    return {"env": "grid", "commit": "test", "runs": runs}
+
+
+@pytest.mark.timeout(600)
+def test_report_files_and_schema(report: Path) -> None:
+    import jsonschema
+
+    for name in ("report.json", "report.md", "report.html", "firing_rates.png", "breakdown.png",
+                 "sensitivity.png", "tradeoff.png", "raster.png"):  # fmt: skip
+        assert (report / name).is_file(), name
+    data = json.loads((report / "report.json").read_text())
+    schema = json.loads((ROOT / "snnkart/report/report.schema.json").read_text())
+    jsonschema.validate(data, schema)
+    assert data["ann"]["run"]["task"]["episodes"] == data["deploy"]["episodes"]
+    md = (report / "report.md").read_text()
+    assert "What it leaves out" in md and "pre-silicon" in md
+
+
+@pytest.mark.timeout(600)
+def test_every_energy_in_the_report_is_count_times_a_profile_price(report: Path) -> None:
+    data = json.loads((report / "report.json").read_text())
+    profiles = {name: load_profile(name) for name in data["profiles"]}
+    checked = 0
+    for c in data["comparisons"]:
+        for side, key in (("snn_terms", "snn_pj"), ("ann_terms", "ann_pj")):
+            for term in c[side]:
+                assert term["price_pj"] == profiles[term["profile"]][term["op"]]
+                assert term["source"] == profiles[term["profile"]].prices[term["op"]].source
+                assert term["energy_pj"] == pytest.approx(term["count"] * term["price_pj"])
+                checked += 1
+            assert c[key] == pytest.approx(sum(t["count"] * t["price_pj"] for t in c[side]))
+        snn_steps = data["snn"]["task"]["steps_per_episode"]
+        assert c["snn_per_episode_pj"] == pytest.approx(c["snn_pj"] * snn_steps)
+        assert c["ratio"] == pytest.approx(c["snn_pj"] / c["ann_pj"])
+    assert checked > 100
+    # the counts are the deployment's, per env step
+    deploy = json.loads((Path(data["deploy"]["file"]) / "deploy.json").read_text())
+    n = deploy["counts"]["env_steps"]
+    per = data["snn"]["per_inference"]
+    assert per["spikes"] == [s / n for s in deploy["counts"]["spikes"]]
+    assert per["synops_chip"][:-1] == [s / n for s in deploy["counts"]["synops"][:-1]]
+    loihi = next(c for c in data["comparisons"] if c["snn_profile"] == "loihi1")
+    synaptic = sum(t["count"] for t in loihi["snn_terms"] if t["op"] == "synaptic_op")
+    assert synaptic == pytest.approx(
+        sum(per["synops_chip"]) + sum(per["pipeline_overhead"]["synops_chip"])
+    )
+
+
+def test_report_refuses_bad_input(deployed: Path, tmp_path: Path) -> None:
+    missing = _cli("report", str(tmp_path / "nowhere"))
+    assert missing.returncode == 2 and "no deployment at" in missing.stderr
+    assert "Traceback" not in missing.stderr
+    bad = tmp_path / "bad.toml"
+    bad.write_text(GOOD.replace("value = 81.0", "value = -81.0"))
+    result = _cli("report", str(deployed), "--profile", str(bad), "--profile", "horowitz45_fp32",
+                  "--out", str(tmp_path / "r"))  # fmt: skip
+    assert result.returncode == 2 and "prices.neuron_update.value" in result.stderr
+    other = tmp_path / "gazebo"
+    trained = _cli("train", "--env", "gazebo", "--policy", "ann", "--steps", "1024",
+                   "--out", str(other))  # fmt: skip
+    assert trained.returncode == 0, trained.stderr
+    wrong = _cli("report", str(deployed), "--ann", str(other), "--out", str(tmp_path / "r"))
+    assert wrong.returncode == 2 and "gazebo run, the deployment drove grid" in wrong.stderr
+
+
+def test_a_policy_that_does_not_drive_is_flagged(deployed: Path, tmp_path: Path) -> None:
+    record = json.loads((deployed / "deploy.json").read_text())
+    record["summary"]["success_rate"] = 0.4
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "deploy.json").write_text(json.dumps(record))
+    result = _cli("report", str(tmp_path / "d"), "--profile", "loihi1", "--profile",
+                  "horowitz45_fp32", "--step", "0")  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "does not drive" in result.stdout
+    assert "does not drive" in (tmp_path / "d" / "report.html").read_text()
+
+
+# The report as a person sees it: headless Chromium renders the page; the test reads the DOM
+# after the page's own layout and checks the screenshot's pixels where each figure is.
+_PROBE = """<script>window.addEventListener('load', () => {
+  const out = {height: document.documentElement.scrollHeight, figures: {}, images: []};
+  for (const f of document.querySelectorAll('figure')) {
+    const r = f.querySelector('img').getBoundingClientRect();
+    out.figures[f.id] = [r.left, r.top, r.width, r.height];
+  }
+  for (const img of document.images) out.images.push(img.complete && img.naturalWidth > 0);
+  document.body.setAttribute('data-probe', JSON.stringify(out));
+});</script>"""
+
+
+def _chromium(*args: str) -> subprocess.CompletedProcess[str]:
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        pytest.skip("optional: Debian's chromium is not installed (apt-get install chromium)")
+    return subprocess.run(
+        [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+         "--virtual-time-budget=5000", *args],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+
+
+@pytest.mark.timeout(600)
+def test_the_html_report_in_a_real_browser(report: Path, tmp_path: Path) -> None:
+    import numpy as np
+    from PIL import Image
+
+    page = (report / "report.html").read_text()
+    assert not re.search(r"https?://", page), "the page must not reference the network"
+    probed = tmp_path / "probed.html"
+    probed.write_text(page.replace("</body>", _PROBE + "</body>"))
+    width = 1200  # the same layout width for the DOM probe and the screenshot
+    dom = _chromium(f"--window-size={width},900", "--dump-dom", probed.as_uri()).stdout
+    probe = json.loads(re.search(r'data-probe="([^"]*)"', dom).group(1).replace("&quot;", '"'))
+    for table in ("headline", "counts"):
+        assert re.search(rf'<table id="{table}">.*?<td>', dom, re.S), table
+    assert probe["images"] and all(probe["images"]), "an embedded image did not decode"
+    for src in re.findall(r'src="data:image/png;base64,([^"]+)"', page):
+        Image.open(io.BytesIO(base64.b64decode(src))).verify()
+    height = math.ceil(probe["height"]) + 10
+    shot = tmp_path / "shot.png"
+    _chromium(f"--window-size={width},{height}", f"--screenshot={shot}", probed.as_uri())
+    pixels = np.asarray(Image.open(shot).convert("L"), dtype=np.float64)
+    assert set(probe["figures"]) >= {"fig-firing_rates", "fig-breakdown", "fig-sensitivity",
+                                     "fig-tradeoff", "fig-raster"}  # fmt: skip
+    for name, (left, top, w, h) in probe["figures"].items():
+        region = pixels[int(top) : int(top + h), int(left) : int(left + w)]
+        assert region.size > 10_000, (name, region.shape)
+        assert region.std() > 10 and (region < 128).mean() > 0.005, f"{name} looks blank"
