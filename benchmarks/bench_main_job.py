@@ -63,10 +63,30 @@ def deploy_summary(path: Path) -> dict[str, Any]:
     }
 
 
+def report_summary(path: Path) -> dict[str, Any]:
+    """The energy report's headline: each SNN profile against the ANN run on each digital one."""
+    report = json.loads(path.read_text())
+    ann = report["ann"].get("run") or report["ann"]["same_width"]
+    return {
+        "drives": report["drives"],
+        "snn_success_rate": report["snn"]["task"]["success_rate"],
+        "ann_success_rate": (ann["task"] or {}).get("success_rate"),
+        "ann_widths": ann["widths"],
+        "synops_per_inference": sum(report["snn"]["per_inference"]["synops_chip"]),
+        "spikes_per_inference": sum(report["snn"]["per_inference"]["spikes"]),
+        "nj_per_inference": {
+            f"{c['snn_profile']} vs {c['ann_profile']}": [c["snn_pj"] / 1e3, c["ann_pj"] / 1e3]
+            for c in report["comparisons"]
+            if c["ann"] == ("run" if "run" in report["ann"] else "same_width")
+        },
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=400_000)
-    parser.add_argument("--lava-episodes", type=int, default=5)
+    parser.add_argument("--ann-steps", type=int, default=300_000)
+    parser.add_argument("--lava-episodes", type=int, default=20)
     parser.add_argument("--eval-episodes", type=int, default=50)
     parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "bench_main_job")
     parser.add_argument("--from-run", type=Path, help="a trained grid SNN run to start from")
@@ -79,7 +99,8 @@ def main() -> None:
             raise SystemExit(f"{out} exists; --from-run needs a fresh --runs directory")
         shutil.copytree(args.from_run, out / "snn")
     command = [sys.executable, "-m", "snnkart.cli", "demo", "--out", str(out),
-               "--steps", str(args.steps), "--lava-episodes", str(args.lava_episodes),
+               "--steps", str(args.steps), "--ann-steps", str(args.ann_steps),
+               "--lava-episodes", str(args.lava_episodes),
                "--eval-episodes", str(args.eval_episodes)]  # fmt: skip
     start = time.perf_counter()
     subprocess.run(command, check=True, cwd=ROOT)
@@ -108,6 +129,7 @@ def main() -> None:
             precision: deploy_summary(out / f"deploy-lava-sim-{precision}" / "deploy.json")
             for precision in ("fixed", "float")
         },
+        "report": report_summary(out / "report" / "report.json"),
     }
     q, lava = results["torch_vs_fixed_point"], results["lava"]
     print(f"training: {meta['global_step']:,} steps, first finish at {meta['first_finish_step']:,}")

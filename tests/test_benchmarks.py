@@ -131,18 +131,25 @@ def test_bench_learning_runs_trains_and_evaluates(tmp_path):
 
 
 @pytest.mark.lava
-@pytest.mark.timeout(150)
+@pytest.mark.timeout(240)
 def test_bench_main_job_runs_the_demo_end_to_end(tmp_path):
-    """The README's main job (``snnkart demo``) on the committed driving policy: all four
-    stages run, Lava matches the reference on every env step, and the numbers are gathered."""
+    """The README's main job (``snnkart demo``) on the committed driving policy: all six
+    stages run, Lava matches the reference on every env step, the energy report is written
+    against a (briefly trained) ANN baseline, and the numbers are gathered."""
     out = tmp_path / "main_job.json"
     run_benchmark(
-        "bench_main_job", "--steps", "1000", "--lava-episodes", "1", "--eval-episodes", "5",
+        "bench_main_job", "--steps", "1000", "--ann-steps", "2048", "--lava-episodes", "1",
+        "--eval-episodes", "5",
         "--runs", str(tmp_path / "demo"), "--from-run", str(FIXTURE), "--out", str(out),
-        timeout=140,
+        timeout=230,
     )  # fmt: skip
     results = json.loads(out.read_text())
     check_machine(results)
+    report = results["report"]
+    assert report["drives"] and report["ann_widths"] == [21, 64, 64, 5]
+    assert report["ann_success_rate"] is not None and report["synops_per_inference"] > 0
+    assert "loihi1 vs horowitz45_fp32_sram" in report["nj_per_inference"]
+    assert (tmp_path / "demo" / "report" / "report.html").is_file()
     assert (
         results["training"]["global_step"]
         == json.loads((FIXTURE / "checkpoint.json").read_text())["global_step"]

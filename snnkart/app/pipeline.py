@@ -1,15 +1,19 @@
-"""The main job (``snnkart demo``): train a spiking policy, export it to NIR, and drive the kart
-with it on Lava's simulated Loihi, on built-in defaults.
+"""The main job (``snnkart demo``): train a spiking policy and its same-width ANN baseline,
+export the SNN to NIR, drive the kart with it on Lava's simulated Loihi, and report its energy
+against the ANN's, on built-in defaults.
 
 Steps, each writing into ``out`` (default ``runs/demo``) and skipped when already complete:
 
-1. ``snnkart train --env grid --track small_S --policy snn --steps 400000 --seed 1`` into
-   ``out/snn`` (resumable; about 3 to 4 minutes here).
-2. Score the torch policy and the fixed-point reference (the bit-exact twin of Lava fixed) on the
+1. ``snnkart train --env grid --track small_S --policy snn --seed 1`` with the demo's settings
+   (:data:`DEMO_SNN_SETTINGS`: the sparse point of the committed sparsity sweep) into
+   ``out/snn`` (resumable).
+2. ``snnkart train --policy ann`` (64-64, the SNN's widths) on the same track into ``out/ann``.
+3. Score the torch policy and the fixed-point reference (the bit-exact twin of Lava fixed) on the
    same 50 seeded episodes: the quantisation's effect on the success rate.
-3. ``snnkart export --nir`` to ``out/policy.nir`` (+ manifest).
-4. ``snnkart deploy --backend lava-sim`` in fixed point and in float, each step checked against
+4. ``snnkart export --nir`` to ``out/policy.nir`` (+ manifest).
+5. ``snnkart deploy --backend lava-sim`` in fixed point and in float, each step checked against
    the numpy reference, results in ``out/deploy-lava-sim-<precision>/deploy.json``.
+6. ``snnkart report`` of the fixed-point deployment against the ANN run, in ``out/report``.
 """
 
 from __future__ import annotations
@@ -25,7 +29,13 @@ from snnkart.io import write_json
 DEMO_ENV = "grid"
 DEMO_TRACK = "small_S"
 DEMO_STEPS = 400_000
+ANN_STEPS = 300_000
 DEMO_SEED = 1
+DEMO_SNN_SETTINGS: dict[str, object] = {}
+"""The demo's own SNN settings on top of the grid SNN defaults (the per-env training defaults
+stay as they are)."""
+SWEEP = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "bench_sparsity-grid.json"
+"""The committed sparsity sweep the report's accuracy-energy figure shows (in a checkout)."""
 QUANT_EPISODES = 50
 EVAL_SEED = 10_000
 
@@ -34,31 +44,36 @@ def run_pipeline(
     out: Path,
     reporter: Reporter,
     steps: int = DEMO_STEPS,
-    lava_episodes: int = 5,
+    lava_episodes: int = 20,
     episodes: int = QUANT_EPISODES,
+    ann_steps: int = ANN_STEPS,
 ) -> dict[str, Any] | None:
-    """Run the four steps; None if training was interrupted (Ctrl-C saves a checkpoint, and
+    """Run the six steps; None if training was interrupted (Ctrl-C saves a checkpoint, and
     running the command again resumes)."""
     with faults.caught():  # Ctrl-C and SIGTERM are taken between env steps
         out.mkdir(parents=True, exist_ok=True)
-        run_dir = out / "snn"
-        if _train(run_dir, steps, reporter) != 0:
-            reporter.message(
-                f"training interrupted; run the same command again to resume {run_dir}"
-            )
-            return None
+        run_dir, ann_dir = out / "snn", out / "ann"
+        for i, (policy, where, n) in enumerate(
+            (("snn", run_dir, steps), ("ann", ann_dir, ann_steps))
+        ):
+            if _train(policy, where, n, reporter, f"[{i + 1}/6]") != 0:
+                reporter.message(
+                    f"training interrupted; run the same command again to resume {where}"
+                )
+                return None
         nir_path = _export(run_dir, out, reporter)
         quant = _quantisation(run_dir, nir_path, out, episodes, reporter)
         records = _deploy(nir_path, out, lava_episodes, reporter)
+        report = _report(out / "deploy-lava-sim-fixed", ann_dir, out / "report", reporter)
         reporter.message(
-            f"\nfiles: run {run_dir}, policy {nir_path}, quantisation "
+            f"\nfiles: runs {run_dir} and {ann_dir}, policy {nir_path}, quantisation "
             f"{out / 'quantization.json'}, Lava results "
-            f"{out}/deploy-lava-sim-{{fixed,float}}/deploy.json"
+            f"{out}/deploy-lava-sim-{{fixed,float}}/deploy.json, report {out / 'report'}"
         )
-        return {"quantization": quant, "deploy": records}
+        return {"quantization": quant, "deploy": records, "report": report}
 
 
-def _train(run_dir: Path, steps: int, reporter: Reporter) -> int:
+def _train(policy: str, run_dir: Path, steps: int, reporter: Reporter, stage: str) -> int:
     from snnkart.app.train import run_training
     from snnkart.rl.checkpoint import load_checkpoint
     from snnkart.rl.config import load_config, read_run_config
@@ -66,17 +81,19 @@ def _train(run_dir: Path, steps: int, reporter: Reporter) -> int:
     if (run_dir / "checkpoint.pt").exists():
         _, meta = load_checkpoint(run_dir / "checkpoint.pt")
         if meta.get("global_step", 0) >= steps:
-            reporter.message(f"[1/4] using the trained run in {run_dir}")
+            reporter.message(f"{stage} using the trained run in {run_dir}")
             return 0
-        reporter.message(f"[1/4] resuming the run in {run_dir}")
+        reporter.message(f"{stage} resuming the run in {run_dir}")
         return run_training(read_run_config(run_dir), run_dir, reporter, resume=True)
+    what = "an SNN" if policy == "snn" else "the same-width ANN baseline"
     reporter.message(
-        f"[1/4] training an SNN on {DEMO_ENV}/{DEMO_TRACK} for {steps:,} steps -> {run_dir}"
+        f"{stage} training {what} on {DEMO_ENV}/{DEMO_TRACK} for {steps:,} steps -> {run_dir}"
     )
+    extra = DEMO_SNN_SETTINGS if policy == "snn" else {}
     cfg = load_config(
         overrides={
-            "env": DEMO_ENV, "track": DEMO_TRACK, "policy": "snn",
-            "total_steps": steps, "seed": DEMO_SEED,
+            "env": DEMO_ENV, "track": DEMO_TRACK, "policy": policy,
+            "total_steps": steps, "seed": DEMO_SEED, **extra,
         }
     )  # fmt: skip
     return run_training(cfg, run_dir, reporter, resume=False)
@@ -86,7 +103,7 @@ def _export(run_dir: Path, out: Path, reporter: Reporter) -> Path:
     from snnkart.export.nir_export import export_nir
     from snnkart.rl.trained import load_run
 
-    reporter.message("[2/4] exporting the spiking actor to NIR")
+    reporter.message("[4/6] exporting the spiking actor to NIR")
     nir_path, manifest_file = export_nir(load_run(run_dir), out / "policy.nir")
     reporter.message(f"      {nir_path}\n      {manifest_file}")
     return nir_path
@@ -101,7 +118,7 @@ def _quantisation(
     from snnkart.eval.episodes import EvalSummary, run_episodes
     from snnkart.rl.trained import TorchPredictor, load_run
 
-    reporter.message(f"[3/4] torch policy vs its fixed-point twin on the same {episodes} episodes")
+    reporter.message(f"[3/6] torch policy vs its fixed-point twin on the same {episodes} episodes")
     run = load_run(run_dir)
     env = run.config.make_env(track=run.track)
     summaries = {}
@@ -139,7 +156,7 @@ def _deploy(
 ) -> dict[str, dict[str, Any]]:
     from snnkart.app.deploy import run_deploy_reported
 
-    reporter.message(f"[4/4] deploying on lava-sim ({lava_episodes} episodes fixed, 2 float)")
+    reporter.message(f"[5/6] deploying on lava-sim ({lava_episodes} episodes fixed, 2 float)")
     records = {}
     for precision, episodes in (("fixed", lava_episodes), ("float", 2)):
         records[precision] = run_deploy_reported(
@@ -147,3 +164,11 @@ def _deploy(
             out / f"deploy-lava-sim-{precision}", reporter,
         )  # fmt: skip
     return records
+
+
+def _report(deploy_dir: Path, ann_dir: Path, out: Path, reporter: Reporter) -> dict[str, Any]:
+    from snnkart.app.report import run_report
+
+    reporter.message("[6/6] energy report: the SNN on Loihi-class profiles vs the ANN baseline")
+    sweep = SWEEP if SWEEP.is_file() else None
+    return run_report(deploy_dir, ann_dir, None, out, reporter, sweep=sweep)

@@ -73,7 +73,8 @@ def demo(
         "runs/demo"
     ),
     steps: Annotated[int, typer.Option(help="training steps of the SNN")] = 400_000,
-    lava_episodes: Annotated[int, typer.Option(help="episodes on lava-sim (fixed)")] = 5,
+    ann_steps: Annotated[int, typer.Option(help="training steps of the ANN baseline")] = 300_000,
+    lava_episodes: Annotated[int, typer.Option(help="episodes on lava-sim (fixed)")] = 20,
     eval_episodes: Annotated[
         int, typer.Option(help="seeded episodes scoring the torch policy and its fixed-point twin")
     ] = 50,
@@ -82,8 +83,9 @@ def demo(
         typer.Option(help="instead: render the scripted driver on steer/small_S to this GIF"),
     ] = None,
 ) -> None:
-    """The main job: train a spiking policy on grid/small_S, export it to NIR and drive the kart
-    on Lava's simulated Loihi, printing success rates, parity numbers and where the files are."""
+    """The main job: train a spiking policy and its same-width ANN baseline on grid/small_S,
+    export the SNN to NIR, drive the kart on Lava's simulated Loihi, and report its energy
+    against the ANN's, printing success rates, parity, the energy table and where files are."""
     if scripted_gif is not None:
         from snnkart.app.demo import scripted_gif as render_gif
 
@@ -94,17 +96,21 @@ def demo(
         status = "finished" if result.finished else "did not finish"
         typer.echo(f"scripted driver on steer/small_S: {status}; GIF written to {scripted_gif}")
         return
-    if steps < 1 or lava_episodes < 1 or eval_episodes < 1:
-        _fail("--steps, --lava-episodes and --eval-episodes must be >= 1")
+    if min(steps, ann_steps, lava_episodes, eval_episodes) < 1:
+        _fail("--steps, --ann-steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
     from snnkart.app.pipeline import run_pipeline
+    from snnkart.report.document import headline
 
     finished = _guard(
-        lambda: run_pipeline(out, ConsoleReporter(), steps, lava_episodes, eval_episodes),
+        lambda: run_pipeline(
+            out, ConsoleReporter(), steps, lava_episodes, eval_episodes, ann_steps
+        ),
         "run the same command again to continue where it stopped",
     )
     if not finished:
         raise typer.Exit(128 + (faults.last_signal or 2))
+    print_headline(finished["report"], headline(finished["report"]))
 
 
 @app.command()
