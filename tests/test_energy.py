@@ -304,3 +304,27 @@ def test_the_html_report_in_a_real_browser(report: Path, tmp_path: Path) -> None
         region = pixels[int(top) : int(top + h), int(left) : int(left + w)]
         assert region.size > 10_000, (name, region.shape)
         assert region.std() > 10 and (region < 128).mean() > 0.005, f"{name} looks blank"
+
+
+def test_plot_raster_shows_one_step_of_every_layer(deployed: Path, tmp_path: Path) -> None:
+    """The membranes are recorded before the reset: a neuron spikes exactly where its membrane
+    is above the threshold; the command writes a PNG and refuses a step past the episode."""
+    import numpy as np
+    from PIL import Image
+
+    from snnkart.eval.trace import trace_step
+
+    nir_file = deployed.parent / "policy.nir"
+    trace = trace_step(nir_file, 10, seed=10_000)
+    start = 0
+    for n, theta in zip(trace.sizes, trace.thresholds, strict=True):
+        layer = slice(start, start + n)
+        np.testing.assert_array_equal(trace.raster[:, layer], trace.membranes[:, layer] > theta)
+        start += n
+    assert trace.raster.any() and not trace.raster.all()
+    out = tmp_path / "raster.png"
+    result = _cli("plot", "raster", str(nir_file), "--step", "10", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    assert Image.open(out).size[0] > 500
+    past = _cli("plot", "raster", str(nir_file), "--step", "100000", "--out", str(out))
+    assert past.returncode == 2 and "choose --step below" in past.stderr

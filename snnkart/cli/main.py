@@ -373,6 +373,26 @@ def report(
     print_headline(record, headline(record))
 
 
+plot_app = typer.Typer(help="Figures of a deployed policy.", no_args_is_help=True)
+app.add_typer(plot_app, name="plot")
+
+
+@plot_app.command("raster")
+def plot_raster(
+    nir_file: Annotated[Path, typer.Argument(help="policy.nir (its manifest beside it)")],
+    step: Annotated[int, typer.Option(help="env step of the episode to show (0-based)")] = 20,
+    seed: Annotated[int, typer.Option(help="seed of the episode")] = 10_000,
+    track: Annotated[
+        str | None, typer.Option("--track", "-t", help="default: the manifest's")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="PNG to write")] = Path("raster.png"),
+) -> None:
+    """Spike raster and membrane traces of every layer for one env step (float32 reference)."""
+    from snnkart.app.plot import run_plot_raster
+
+    _guard(lambda: run_plot_raster(nir_file, step, seed, track, out, ConsoleReporter()))
+
+
 def _interrupted(exc: KeyboardInterrupt, what: str) -> NoReturn:
     """Report Ctrl-C/SIGTERM and exit with the shell's status for it (130, 143)."""
     from snnkart.faults import Interrupted
