@@ -328,3 +328,38 @@ def test_plot_raster_shows_one_step_of_every_layer(deployed: Path, tmp_path: Pat
     assert Image.open(out).size[0] > 500
     past = _cli("plot", "raster", str(nir_file), "--step", "100000", "--out", str(out))
     assert past.returncode == 2 and "choose --step below" in past.stderr
+
+
+def test_the_side_panel_shows_the_driving_policys_layer_activity(deployed: Path) -> None:
+    """``eval --render/--video`` of a spiking run: the panel's per-layer firing rates are the
+    torch policy's, equal to the float32 reference's spikes for the same observation, and the
+    panel draws them."""
+    import os
+
+    import numpy as np
+
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    from snnkart.app.evaluate import _ShowingActivity
+    from snnkart.backends.reference import NIRReference
+    from snnkart.rl.trained import TorchPredictor, load_run
+
+    run = load_run(FIXTURE)
+    env = run.config.make_env(render_mode="rgb_array", track=run.track)
+    reference = NIRReference(deployed.parent / "policy.nir", "float32")
+    driver = _ShowingActivity(TorchPredictor(run, seed=0), env.unwrapped)
+    try:
+        obs, _ = env.reset(seed=4)
+        for _ in range(15):
+            action = driver.predict(obs)
+            window, _ = reference.step(obs)
+            rates = [r for _, r in env.unwrapped.activity]
+            expected = window.spikes / (np.asarray(reference.chain.sizes) * reference.T)
+            np.testing.assert_allclose(rates, expected, rtol=1e-6)
+            obs, *_ = env.step(action)
+        shown = env.render()
+        env.unwrapped.activity = []
+        without = env.render()  # the same state without the activity
+    finally:
+        env.close()
+    assert len(rates) == 2 and 0 < min(rates) < 1
+    assert (shown != without).any(axis=2).sum() > 500  # the bars and their labels

@@ -43,7 +43,10 @@ def run_eval(
     choice = _track_choice(run, track)
     mode = "human" if render else ("rgb_array" if video is not None else None)
     env = run.config.make_env(render_mode=mode, track=choice.track)
-    results = _episodes(env, TorchPredictor(run, seed=seed), episodes, seed, video, reporter)
+    predictor: Any = TorchPredictor(run, seed=seed)
+    if mode is not None and run.config.policy == "snn":
+        predictor = _ShowingActivity(predictor, env.unwrapped)
+    results = _episodes(env, predictor, episodes, seed, video, reporter)
     summary = EvalSummary.of(results)
     path = out or run_dir / "eval.json"
     extra = {
@@ -92,6 +95,22 @@ def _episodes(
         return run_episodes(
             env, predictor, episodes, seed, on_step=on_step, on_episode=lambda r: task.advance()
         )
+
+
+class _ShowingActivity:
+    """A spiking policy's predictor that puts its per-layer firing rates in the env's side
+    panel before the env draws the step."""
+
+    def __init__(self, predictor: Any, env: Any) -> None:
+        self.predictor, self.env = predictor, env
+
+    def reset(self) -> None:
+        self.predictor.reset()
+
+    def predict(self, obs: Any) -> Any:
+        action = self.predictor.predict(obs)
+        self.env.activity = self.predictor.activity()
+        return action
 
 
 def _track_choice(run: Any, track: str | None) -> Any:

@@ -249,6 +249,23 @@ class Renderer:
         for name, term in env.last_reward_terms.items():
             colour = POSITIVE if term > 0 else NEGATIVE if term < 0 else TEXT_DIM
             y = self._row(frame, y, name, f"{term:+.3f}", colour)
+        if env.activity:
+            self._draw_activity(frame, self._rule(frame, y))
+
+    def _draw_activity(self, frame: pygame.Surface, y: int) -> None:
+        """The driving spiking policy's firing rate per layer in the last env step, as bars."""
+        heading = self._small_font.render("spiking layers, last step", True, TEXT_DIM)
+        frame.blit(heading, (self.track_width + self._pad, y))
+        y += round(heading.get_height() * 1.6)
+        left, right = self.track_width + self._pad, self.size[0] - self._pad
+        for label, rate in self.env.activity:
+            y = self._row(frame, y, label, f"{100 * rate:.0f} % firing", TEXT)
+            width = right - left
+            bar = max(0, min(width, round(width * rate)))
+            height = max(3, self._line_height // 3)
+            pygame.draw.rect(frame, PANEL_RULE, (left, y - self._pad // 3, width, height))
+            pygame.draw.rect(frame, POSITIVE, (left, y - self._pad // 3, bar, height))
+            y += height
 
     # -- helpers -------------------------------------------------------------------------------
 

@@ -104,7 +104,8 @@ class ActorCritic(nn.Module):
     def act_deterministic(
         self, obs: torch.Tensor, raw_obs: torch.Tensor, input_spikes: torch.Tensor | None = None
     ) -> torch.Tensor:
-        out, _, _ = self.actor_output(obs, raw_obs, input_spikes)
+        out, _, rates = self.actor_output(obs, raw_obs, input_spikes)
+        self.last_rates = None if rates is None else rates.detach()  # the side panel's
         return out.argmax(-1) if self.discrete else out
 
     def clamp_parameters(self) -> None:

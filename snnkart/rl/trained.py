@@ -113,5 +113,16 @@ class TorchPredictor:
         a = action[0].numpy()
         return int(a) if self.discrete else np.clip(a, -1.0, 1.0).astype(np.float32)
 
+    def activity(self) -> list[tuple[str, float]]:
+        """The SNN's firing rate per layer in the last ``predict`` (empty for an ANN)."""
+        rates = getattr(self.policy, "last_rates", None)
+        if rates is None or not isinstance(self.policy, SNNPolicy):
+            return []
+        sizes = self.policy.cfg.hidden
+        return [
+            (f"layer {i + 1} ({n})", float(r))
+            for i, (n, r) in enumerate(zip(sizes, rates, strict=True))
+        ]
+
     def _next_seed(self) -> int:
         return int(torch.randint(0, 2**31 - 1, (1,), generator=self.generator))
