@@ -676,3 +676,22 @@ def test_defaults_per_env_and_policy_yield_to_the_user(
     assert mine.ppo.num_envs == cfg.ppo.num_envs
     theirs = load_config(overrides={"env": env, "policy": policy}, sets=["ppo.num_envs=4"])
     assert (theirs.ppo.num_envs, theirs.ppo.num_steps) == (4, cfg.ppo.num_steps)
+
+
+def test_firing_rate_penalty_warmup_ramps_the_penalty(tmp_path: Path) -> None:
+    """snn.rate_reg_warmup = 0.5 over 4 iterations: the penalty used at iterations 1..4 is
+    0, half, full, full (of snn.rate_reg = 0.1), and it enters the update from iteration 2."""
+    cfg = tiny_config(policy="snn", total_steps=4 * BATCH,
+                      extra=["snn.rate_reg=0.1", "snn.rate_reg_warmup=0.5"])  # fmt: skip
+    train(cfg, tmp_path / "warm")
+    used = [m["charts/rate_reg"] for m in metrics(tmp_path / "warm")]
+    assert used == pytest.approx([0.0, 0.05, 0.1, 0.1])
+    none = tiny_config(policy="snn", total_steps=4 * BATCH)
+    train(none, tmp_path / "none")
+    warm, without = metrics(tmp_path / "warm"), metrics(tmp_path / "none")
+    assert "charts/rate_reg" not in without[0]
+    # iteration 1 trains without the penalty: the same update as no penalty at all;
+    # from iteration 2 the penalty changes the update
+    for key in ("losses/policy_loss", "losses/value_loss", "losses/approx_kl"):
+        assert warm[0][key] == without[0][key], key
+    assert warm[1]["losses/approx_kl"] != without[1]["losses/approx_kl"]

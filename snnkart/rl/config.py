@@ -90,6 +90,14 @@ class SNNConfig(_Section):
     surrogate_slope: float = Field(25.0, gt=0.0, description="fast-sigmoid slope k")
     encoding: Literal["current", "rate"] = "current"
     rate_reg: float = Field(0.0, ge=0.0, description="penalty weight on the mean firing rate")
+    rate_reg_warmup: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="fraction of training over which the firing-rate penalty ramps up linearly "
+        "from 0 to rate_reg (0: the full penalty from the start), so the policy learns to "
+        "drive before it is made sparse",
+    )
     init_gain: float = Field(
         2.0, gt=0.0, description="scale of the spiking layers' initial weights"
     )

@@ -106,6 +106,7 @@ class Trainer:
         self.policy = policy_for(cfg, self.env0)
         self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=p.learning_rate, eps=1e-5)
         self.ent_coef = p.ent_coef  # annealed with the learning rate when ppo.anneal_ent
+        self.rate_reg = cfg.snn.rate_reg if cfg.policy == "snn" else 0.0  # snn.rate_reg_warmup
         self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
         self.progress = Progress()
         self.rng = np.random.default_rng(cfg.seed)
@@ -195,6 +196,10 @@ class Trainer:
         if p.anneal_lr:
             self.optimizer.param_groups[0]["lr"] = frac * p.learning_rate
         self.ent_coef = frac * p.ent_coef if p.anneal_ent else p.ent_coef
+        snn = self.cfg.snn
+        self.rate_reg = snn.rate_reg if self.cfg.policy == "snn" else 0.0
+        if snn.rate_reg_warmup > 0.0:
+            self.rate_reg *= min(1.0, (1.0 - frac) / snn.rate_reg_warmup)
 
     def _iteration(self, buf: RolloutBuffer) -> dict[str, Any] | None:
         """One iteration: rollout, GAE, update, record, checkpoint; None if an interrupt cut
@@ -302,9 +307,8 @@ class Trainer:
             v_loss = 0.5 * ((out.value - b.returns[mb]) ** 2).mean()
         entropy = out.entropy.mean()
         loss = pg_loss - self.ent_coef * entropy + p.vf_coef * v_loss
-        rate_reg = self.cfg.snn.rate_reg if self.cfg.policy == "snn" else 0.0
-        if rate_reg > 0.0 and out.rates is not None:
-            loss = loss + rate_reg * out.rates.sum()
+        if self.rate_reg > 0.0 and out.rates is not None:
+            loss = loss + self.rate_reg * out.rates.sum()
         parts = {"loss": loss, "policy": pg_loss, "value": v_loss, "entropy": entropy}
         return parts, ratio, logratio
 
@@ -329,6 +333,7 @@ class Trainer:
             "charts/first_finish_step": self.progress.first_finish_step,
             "charts/learning_rate": self.optimizer.param_groups[0]["lr"],
             "charts/ent_coef": self.ent_coef,
+            **({"charts/rate_reg": self.rate_reg} if self.cfg.snn.rate_reg_warmup else {}),
             "charts/SPS": steps / (rollout_time + update_time),
             "charts/rollout_SPS": steps / rollout_time,
             "charts/update_seconds": update_time,
