@@ -42,6 +42,8 @@ POINTS: dict[str, list[str]] = {
     "t2-r0.05": ["snn.num_steps=2", "snn.rate_reg=0.05"],
     "t8-r0.05": ["snn.rate_reg=0.05"],
     "t4-r0.05-w32": ["snn.num_steps=4", "snn.rate_reg=0.05", "snn.hidden=[32, 32]"],
+    "t4-r0.1-warm": ["snn.num_steps=4", "snn.rate_reg=0.1", "snn.rate_reg_warmup=0.5"],
+    "t4-r0.2-warm": ["snn.num_steps=4", "snn.rate_reg=0.2", "snn.rate_reg_warmup=0.5"],
 }
 """Named points of the sweep: ``snnkart train --set`` overrides."""
 

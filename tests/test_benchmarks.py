@@ -162,3 +162,25 @@ def test_bench_main_job_runs_the_demo_end_to_end(tmp_path):
         assert lava["episodes"] == episodes and lava["env_steps"] > 100
         assert lava["mismatched_windows"] == 0 and lava["mismatched_actions"] == 0
         assert lava["float32_identical_action_fraction"] >= 0.95
+
+
+@pytest.mark.timeout(200)
+def test_bench_sparsity_trains_deploys_and_records_counts(tmp_path):
+    """Tiny size: one point, one seed, one iteration; the record holds the deployment's counts
+    per env step, and a second run reuses the deployed run instead of training again."""
+    out = tmp_path / "sparsity.json"
+    args = ("--points", "t4-r0.05", "--seeds", "1", "--steps", "2048", "--episodes", "2",
+            "--jobs", "1", "--runs", str(tmp_path / "runs"), "--out", str(out))  # fmt: skip
+    run_benchmark("bench_sparsity", *args, timeout=190)
+    results = json.loads(out.read_text())
+    check_machine(results)
+    (run,) = results["runs"]
+    deploy = json.loads(Path(run["deploy_json"]).read_text())
+    n = deploy["counts"]["env_steps"]
+    assert run["num_steps"] == 4 and run["env_steps"] == n and run["steps"] == 2048
+    assert run["synops_per_step"] == [s / n for s in deploy["counts"]["synops"]]
+    assert run["network"]["sizes"] == [64, 64] and run["precision"] == "fixed"
+    assert len(deploy["episodes"]) == 2
+    stamp = Path(run["deploy_json"]).stat().st_mtime
+    run_benchmark("bench_sparsity", *args, timeout=60)
+    assert Path(run["deploy_json"]).stat().st_mtime == stamp  # reused, not redone
