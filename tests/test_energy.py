@@ -210,6 +210,8 @@ def test_every_energy_in_the_report_is_count_times_a_profile_price(report: Path)
         snn_steps = data["snn"]["task"]["steps_per_episode"]
         assert c["snn_per_episode_pj"] == pytest.approx(c["snn_pj"] * snn_steps)
         assert c["ratio"] == pytest.approx(c["snn_pj"] / c["ann_pj"])
+        snn_return = data["snn"]["task"]["mean_return"]
+        assert c["snn_per_return_pj"] == pytest.approx(c["snn_per_episode_pj"] / snn_return)
     assert checked > 100
     # the counts are the deployment's, per env step
     deploy = json.loads((Path(data["deploy"]["file"]) / "deploy.json").read_text())

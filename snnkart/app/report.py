@@ -140,7 +140,10 @@ def _ann_section(ann: AnnCounts, task: dict[str, Any] | None) -> dict[str, Any]:
 
 
 def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]],
-                 chips: list[Profile], digital: list[Profile], host: Profile) -> list[dict[str, Any]]:  # fmt: skip
+                 chips: list[Profile], digital: list[Profile], host: Profile,
+                 snn_return: float) -> list[dict[str, Any]]:  # fmt: skip
+    """Every SNN profile against every ANN on every digital profile: energy per inference, per
+    episode and per unit of return (None when the mean return is not positive)."""
     rows = []
     for chip in chips:
         s_terms = snn_terms(snn, chip, host)
@@ -157,12 +160,19 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                     "ratio": e_snn / e_ann if e_ann else None,
                     "snn_per_episode_pj": e_snn * snn.steps_per_episode,
                     "ann_per_episode_pj": e_ann * ann_steps,
+                    "snn_per_return_pj": _per_return(e_snn * snn.steps_per_episode, snn_return),
+                    "ann_per_return_pj": _per_return(e_ann * ann_steps,
+                                                     task["mean_return"] if task else snn_return),
                     "snn_breakdown_pj": breakdown(s_terms), "ann_breakdown_pj": breakdown(a_terms),
                     "snn_terms": [t.as_dict() for t in s_terms],
                     "ann_terms": [t.as_dict() for t in a_terms],
                     "break_even": cmp.break_even(),
                 })  # fmt: skip
     return rows
+
+
+def _per_return(energy: float, mean_return: float) -> float | None:
+    return energy / mean_return if mean_return > 0 else None
 
 
 def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
@@ -236,7 +246,9 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         "ann": {key: _ann_section(a, task) for key, (a, task) in anns.items()},
         "host_profile": host_profile.name,
         "profiles": {p.name: p.describe() for p in [*chips, *digital, host_profile]},
-        "comparisons": _comparisons(snn, anns, chips, digital, host_profile),
+        "comparisons": _comparisons(
+            snn, anns, chips, digital, host_profile, record["summary"]["mean_return"]
+        ),
         "sensitivity": [
             {
                 "snn_profile": c.name,

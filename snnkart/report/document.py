@@ -53,8 +53,22 @@ def _nj(pj: float) -> str:
     return f"{pj / 1000:.3g}"
 
 
+def _uj(pj: float | None) -> str:
+    return "-" if pj is None else f"{pj / 1e6:.3g}"
+
+
 def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x:.0f} %"
+
+
+def _parity(deploy: dict[str, Any]) -> str:
+    """How the deployment's counts were cross-checked (deploy.json's parity)."""
+    p = deploy.get("parity") or {}
+    ref = p.get("same_arithmetic_reference")
+    if not ref:
+        return "The counts are the reference's own."
+    return (f"Every env step's spike raster was checked against the {ref} reference: "
+            f"{p.get('same_arithmetic_mismatched_windows')} of {p.get('env_steps')} differ.")  # fmt: skip
 
 
 def headline(report: dict[str, Any]) -> list[dict[str, str]]:
@@ -70,6 +84,8 @@ def headline(report: dict[str, Any]) -> list[dict[str, str]]:
             "SNN/ANN": f"{c['ratio']:.3g}" if c["ratio"] is not None else "-",
             "SNN µJ/episode": f"{c['snn_per_episode_pj'] / 1e6:.3g}",
             "ANN µJ/episode": f"{c['ann_per_episode_pj'] / 1e6:.3g}",
+            "SNN µJ/return": _uj(c["snn_per_return_pj"]),
+            "ANN µJ/return": _uj(c["ann_per_return_pj"]),
             "SNN success": _pct(snn_task["success_rate"]),
             "ANN success": _pct(task["success_rate"]) if task else "not run",
         })  # fmt: skip
@@ -156,7 +172,7 @@ def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
         f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). "
         f"Network {report['network']['n_in']} -> {report['network']['sizes']} -> "
         f"{report['network']['n_out']}, T = {report['network']['num_steps']}. "
-        f"Host work priced on `{report['host_profile']}`.", "",
+        f"Host work priced on `{report['host_profile']}`. {_parity(d)}", "",
         "## Verdict", "", *[f"- {line}" for line in _verdict(report)], "",
         "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
         "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
