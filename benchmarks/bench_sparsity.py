@@ -100,6 +100,72 @@ def one_run(
     }
 
 
+def summarise(results: dict[str, Any]) -> dict[str, Any]:
+    """Per point, over its seeds: success and counts (median, min, max), the energy per
+    inference on each neuromorphic profile (host work on horowitz45_fp32) against the 64-64 ANN
+    on each digital profile, and whether the point meets the issue's goal against the dense
+    default: >= 95 % of its success, >= 10x fewer synaptic ops, T <= 4."""
+    import statistics
+
+    from snnkart.energy.counts import AnnCounts, Network, SnnCounts, host_ops
+    from snnkart.energy.pricing import ann_terms, snn_terms, total
+    from snnkart.energy.profiles import DEFAULT_CHIPS, DEFAULT_DIGITAL, DEFAULT_HOST, load_profile
+
+    host = load_profile(DEFAULT_HOST)
+    chips = [load_profile(n) for n in DEFAULT_CHIPS]
+    digital = [load_profile(n) for n in DEFAULT_DIGITAL]
+
+    def energy(run: dict[str, Any], chip: Any) -> float:
+        net = Network(n_in=run["network"]["n_in"], sizes=tuple(run["sizes"]),
+                      n_out=run["network"]["n_out"], num_steps=run["num_steps"])  # fmt: skip
+        zeros = (0.0,) * len(net.sizes)
+        counts = SnnCounts(
+            net, run["env_steps"], 1, tuple(run["spikes_per_step"]),
+            (*run["synops_per_step"][:-1], 0.0), tuple(run["neuron_updates_per_step"]),
+            zeros, zeros, zeros, tuple(host_ops(net, fixed_point=True)),
+        )  # fmt: skip
+        return total(snn_terms(counts, chip, host))
+
+    def spread(values: list[float]) -> dict[str, float]:
+        return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+    points: dict[str, Any] = {}
+    for name in dict.fromkeys(r["point"] for r in results["runs"]):
+        runs = [r for r in results["runs"] if r["point"] == name]
+        points[name] = {
+            "settings": runs[0]["settings"], "num_steps": runs[0]["num_steps"],
+            "sizes": runs[0]["sizes"], "seeds": [r["seed"] for r in runs],
+            "success_rate": spread([r["success_rate"] for r in runs]),
+            "synops_per_inference": spread([sum(r["synops_per_step"][:-1]) for r in runs]),
+            "spikes_per_inference": spread([sum(r["spikes_per_step"]) for r in runs]),
+            "nj_per_inference": {c.name: spread([energy(r, c) / 1e3 for r in runs]) for c in chips},
+        }  # fmt: skip
+    net = results["runs"][0]["network"]
+    ann = AnnCounts((net["n_in"], 64, 64, net["n_out"]))
+    ann_nj = {d.name: total(ann_terms(ann, d)) / 1e3 for d in digital}
+    dense = points.get("default")
+    for p in points.values():
+        same = AnnCounts((net["n_in"], *p["sizes"], net["n_out"]))
+        p["ann_same_width_nj_per_inference"] = {d.name: total(ann_terms(same, d)) / 1e3
+                                                for d in digital}  # fmt: skip
+        p["ratio_vs_ann_same_width"] = {
+            f"{c} vs {d}": e["median"] / a for c, e in p["nj_per_inference"].items()
+            for d, a in p["ann_same_width_nj_per_inference"].items()
+        }  # fmt: skip
+        p["ratio_vs_ann_64_64"] = {
+            f"{c} vs {d}": e["median"] / a for c, e in p["nj_per_inference"].items()
+            for d, a in ann_nj.items()
+        }  # fmt: skip
+        if dense:
+            p["meets_goal"] = (
+                p["success_rate"]["median"] >= 0.95 * dense["success_rate"]["median"]
+                and p["synops_per_inference"]["median"] * 10
+                <= dense["synops_per_inference"]["median"]
+                and p["num_steps"] <= 4
+            )
+    return {"host_profile": DEFAULT_HOST, "ann_64_64_nj_per_inference": ann_nj, "points": points}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--env", default="grid")
@@ -109,8 +175,20 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--runs", type=Path, default=ROOT / "runs" / "bench_sparsity")
+    parser.add_argument(
+        "--summarise",
+        type=Path,
+        metavar="JSON",
+        help="only add the per-point summary (with energies) to a results file",
+    )
     add_out_argument(parser)
     args = parser.parse_args()
+    if args.summarise is not None:
+        data = json.loads(args.summarise.read_text())
+        data["summary"] = summarise(data)
+        args.summarise.write_text(json.dumps(data, indent=2) + "\n")
+        _print_summary(data["summary"])
+        return
 
     path = output_path("bench_sparsity", args.out)
     results: dict[str, Any] = {
@@ -145,7 +223,22 @@ def main() -> None:
                 f"spikes/step {sum(r['spikes_per_step']):,.1f}, {r['seconds']:.0f} s",
                 flush=True,
             )
+    results["summary"] = summarise(results)
+    path.write_text(json.dumps(results, indent=2) + "\n")
+    _print_summary(results["summary"])
     print(f"results written to {path}")
+
+
+def _print_summary(summary: dict[str, Any]) -> None:
+    ann = summary["ann_64_64_nj_per_inference"]
+    print("ANN 64-64 nJ/inference: " + ", ".join(f"{k} {v:.3g}" for k, v in ann.items()))
+    for name, p in summary["points"].items():
+        s, syn = p["success_rate"], p["synops_per_inference"]
+        print(f"{name:14s} success {s['median']:.0%} ({s['min']:.0%}-{s['max']:.0%}), synops "
+              f"{syn['median']:,.0f}, loihi1 {p['nj_per_inference']['loihi1']['median']:.3g} nJ "
+              f"({p['ratio_vs_ann_same_width']['loihi1 vs horowitz45_fp32_sram']:.2f}x the "
+              "same-width fp32+SRAM ANN), "
+              f"goal {'met' if p.get('meets_goal') else 'not met'}")  # fmt: skip
 
 
 if __name__ == "__main__":
