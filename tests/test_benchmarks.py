@@ -181,6 +181,8 @@ def test_bench_sparsity_trains_deploys_and_records_counts(tmp_path):
     assert run["synops_per_step"] == [s / n for s in deploy["counts"]["synops"]]
     assert run["network"]["sizes"] == [64, 64] and run["precision"] == "fixed"
     assert len(deploy["episodes"]) == 2
+    point = results["summary"]["points"]["t4-r0.05"]
+    assert point["seeds"] == [1] and point["nj_per_inference"]["loihi1"]["median"] > 0
     stamp = Path(run["deploy_json"]).stat().st_mtime
     run_benchmark("bench_sparsity", *args, timeout=60)
     assert Path(run["deploy_json"]).stat().st_mtime == stamp  # reused, not redone
