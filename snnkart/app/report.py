@@ -17,7 +17,6 @@ from snnkart.energy.pricing import Comparison, ann_terms, breakdown, snn_terms, 
 from snnkart.energy.profiles import (
     DEFAULT_CHIPS,
     DEFAULT_DIGITAL,
-    DEFAULT_HOST,
     Profile,
     load_profile,
 )
@@ -44,7 +43,9 @@ def read_deploy(deploy_dir: Path) -> dict[str, Any]:
     return record
 
 
-def _profiles(names: list[str] | None, host: str) -> tuple[list[Profile], list[Profile], Profile]:
+def _profiles(
+    names: list[str] | None, host: str | None
+) -> tuple[list[Profile], list[Profile], Profile | None]:
     loaded = [load_profile(n) for n in (names or [*DEFAULT_CHIPS, *DEFAULT_DIGITAL])]
     chips = [p for p in loaded if p.kind == "neuromorphic"]
     digital = [p for p in loaded if p.kind == "digital"]
@@ -53,6 +54,8 @@ def _profiles(names: list[str] | None, host: str) -> tuple[list[Profile], list[P
             "--profile: give at least one neuromorphic and one digital profile (the SNN runs "
             f"on the first, the ANN on the second); got {', '.join(p.name for p in loaded)}"
         )
+    if host is None:
+        return chips, digital, None  # the host is priced like the ANN it is compared with
     host_profile = load_profile(host)
     if host_profile.kind != "digital":
         raise ReportError(f"--host-profile: {host_profile.name} is not a digital profile")
@@ -124,6 +127,7 @@ def _snn_section(snn: SnnCounts, record: dict[str, Any]) -> dict[str, Any]:
             "host_ops": [vars(op) for op in snn.host],
         },
         "neurobench": snn.neurobench(),
+        "deployed": snn.deployed(),
         "footprint": snn.footprint(),
         "latency": {
             "logical_steps": net.num_steps,
@@ -140,29 +144,30 @@ def _ann_section(ann: AnnCounts, task: dict[str, Any] | None) -> dict[str, Any]:
 
 
 def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]],
-                 chips: list[Profile], digital: list[Profile], host: Profile,
+                 chips: list[Profile], digital: list[Profile], host: Profile | None,
                  snn_return: float) -> list[dict[str, Any]]:  # fmt: skip
     """Every SNN profile against every ANN on every digital profile: energy per inference, per
-    episode and per unit of return (None when the mean return is not positive)."""
+    episode and per unit of return (None when the mean return is not positive, or for an ANN
+    that was not run). The SNN's host work is priced on ``host``, else on the ANN's profile."""
     rows = []
     for chip in chips:
-        s_terms = snn_terms(snn, chip, host)
-        e_snn = total(s_terms)
         for key, (ann, task) in anns.items():
             for dig in digital:
+                s_terms = snn_terms(snn, chip, host or dig)
+                e_snn = total(s_terms)
                 a_terms = ann_terms(ann, dig)
                 e_ann = total(a_terms)
-                ann_steps = task["steps_per_episode"] if task else snn.steps_per_episode
-                cmp = Comparison(snn, ann, chip, host, dig)
+                cmp = Comparison(snn, ann, chip, host or dig, dig)
                 rows.append({
-                    "snn_profile": chip.name, "host_profile": host.name, "ann": key,
+                    "snn_profile": chip.name, "host_profile": (host or dig).name, "ann": key,
                     "ann_profile": dig.name, "snn_pj": e_snn, "ann_pj": e_ann,
                     "ratio": e_snn / e_ann if e_ann else None,
                     "snn_per_episode_pj": e_snn * snn.steps_per_episode,
-                    "ann_per_episode_pj": e_ann * ann_steps,
+                    "ann_per_episode_pj": e_ann * task["steps_per_episode"] if task else None,
                     "snn_per_return_pj": _per_return(e_snn * snn.steps_per_episode, snn_return),
-                    "ann_per_return_pj": _per_return(e_ann * ann_steps,
-                                                     task["mean_return"] if task else snn_return),
+                    "ann_per_return_pj": _per_return(
+                        e_ann * task["steps_per_episode"], task["mean_return"]
+                    ) if task else None,
                     "snn_breakdown_pj": breakdown(s_terms), "ann_breakdown_pj": breakdown(a_terms),
                     "snn_terms": [t.as_dict() for t in s_terms],
                     "ann_terms": [t.as_dict() for t in a_terms],
@@ -176,45 +181,38 @@ def _per_return(energy: float, mean_return: float) -> float | None:
 
 
 def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
-    """The committed sparsity sweep, priced: each run's energy per inference on ``chip``."""
-    from snnkart.energy.counts import Network, host_ops
-
+    """The committed sparsity sweep, priced: each run's energy per inference on ``chip`` (host
+    work on ``host``), and the 64-64 ANN's on each digital profile."""
     try:
         data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ReportError(f"--sweep {path}: not a readable sweep JSON ({exc})") from exc
-    points = []
-    for run in data.get("runs", []):
-        net = Network(n_in=run["network"]["n_in"], sizes=tuple(run["sizes"]),
-                      n_out=run["network"]["n_out"], num_steps=run["num_steps"])  # fmt: skip
-        L = len(net.sizes)
-        counts = SnnCounts(
-            net, run["env_steps"], 1, tuple(run["spikes_per_step"]),
-            tuple([*run["synops_per_step"][:-1], 0.0]), tuple(run["neuron_updates_per_step"]),
-            (0.0,) * L, (0.0,) * L, (0.0,) * L,
-            tuple(host_ops(net, fixed_point=run.get("precision") == "fixed")),
-        )  # fmt: skip
-        points.append({**{k: run[k] for k in ("point", "seed", "num_steps", "sizes", "success_rate")},
-                       "synops": sum(counts.synops), "spikes": sum(counts.spikes),
-                       "energy_pj": total(snn_terms(counts, chip, host))})  # fmt: skip
-    net0 = points and data["runs"][0]["network"]
+        runs = data["runs"]
+        points = [
+            {**{k: run[k] for k in ("point", "seed", "num_steps", "sizes", "success_rate")},
+             "energy_pj": total(snn_terms(SnnCounts.of_sweep(run), chip, host))}
+            for run in runs
+        ]  # fmt: skip
+    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ReportError(f"--sweep {path}: not a bench_sparsity results file ({exc})") from exc
     ann_pj = {}
-    if net0:
-        same = AnnCounts((net0["n_in"], 64, 64, net0["n_out"]))
-        ann_pj = {d.name: total(ann_terms(same, d)) for d in digital}
+    if runs:
+        net = runs[0]["network"]
+        ann = AnnCounts((net["n_in"], 64, 64, net["n_out"]))
+        ann_pj = {f"64-64 on {d.name}": total(ann_terms(ann, d)) for d in digital}
     return {"file": str(path), "env": data.get("env"), "commit": data.get("commit"),
-            "profile": chip.name, "points": points, "ann_64_64_pj": ann_pj}  # fmt: skip
+            "profile": chip.name, "host_profile": host.name, "points": points,
+            "ann_64_64_pj": ann_pj}  # fmt: skip
 
 
 def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
-                 host: str = DEFAULT_HOST, sweep: Path | None = None) -> dict[str, Any]:  # fmt: skip
+                 host: str | None = None, sweep: Path | None = None) -> dict[str, Any]:  # fmt: skip
     """Everything the report says, as one JSON-ready record."""
     record = read_deploy(deploy_dir)
     chips, digital, host_profile = _profiles(profiles, host)
     snn = SnnCounts.of_deploy(record)
     net = snn.net
+    widths = (net.n_in, *net.sizes, net.n_out) if net.readout else (net.n_in, *net.sizes)
     anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]] = {
-        "same_width": (AnnCounts((net.n_in, *net.sizes, net.n_out), net.action_mode,
+        "same_width": (AnnCounts(widths, net.action_mode,
                                  f"ANN {'-'.join(map(str, net.sizes))} (same widths)"), None),
     }  # fmt: skip
     if ann_dir is not None:
@@ -229,6 +227,8 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
             "nir_file": record.get("nir_file"),
             "env": record["env"]["env"],
             "track": record["env"].get("track"),
+            "track_given": record["env"].get("track_given"),
+            "track_source": record["env"].get("track_source"),
             "episodes": snn.episodes,
             "env_steps": snn.env_steps,
             "first_seed": record["first_seed"],
@@ -244,8 +244,11 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         },
         "snn": _snn_section(snn, record),
         "ann": {key: _ann_section(a, task) for key, (a, task) in anns.items()},
-        "host_profile": host_profile.name,
-        "profiles": {p.name: p.describe() for p in [*chips, *digital, host_profile]},
+        "host_profile": host_profile.name if host_profile else "the ANN's profile",
+        "profiles": {
+            p.name: p.describe()
+            for p in [*chips, *digital, *([host_profile] if host_profile else [])]
+        },
         "comparisons": _comparisons(
             snn, anns, chips, digital, host_profile, record["summary"]["mean_return"]
         ),
@@ -253,17 +256,21 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
             {
                 "snn_profile": c.name,
                 "ann_profile": d.name,
-                "rows": Comparison(snn, anns["same_width"][0], c, host_profile, d).sensitivity(),
+                "rows": Comparison(
+                    snn, anns["same_width"][0], c, host_profile or d, d
+                ).sensitivity(),
             }
             for c in chips
             for d in _memory_first(digital)
         ],
-        "sweep": None if sweep is None else _sweep(sweep, chips[0], host_profile, digital),
+        "sweep": None
+        if sweep is None
+        else _sweep(sweep, chips[0], host_profile or _memory_first(digital)[0], digital),
     }
 
 
 def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
-               out: Path | None, reporter: Reporter, host: str = DEFAULT_HOST,
+               out: Path | None, reporter: Reporter, host: str | None = None,
                sweep: Path | None = None, step: int = 0) -> dict[str, Any]:  # fmt: skip
     """Build the report and write ``report.json``, ``report.md`` and ``report.html``."""
     from snnkart.report.document import write_report
@@ -272,7 +279,7 @@ def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | Non
     with reporter.progress("report", 3) as task:
         report = build_report(deploy_dir, ann_dir, profiles, host, sweep)
         task.advance()
-        trace = _trace(report, step)
+        trace = _trace(report, deploy_dir, step, reporter)
         task.advance()
         paths = write_report(report, out, trace)
         task.advance()
@@ -280,11 +287,23 @@ def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | Non
     return report
 
 
-def _trace(report: dict[str, Any], step: int) -> Any:
-    """The raster of one env step, if the deployed NIR file is still there."""
+def _trace(report: dict[str, Any], deploy_dir: Path, step: int, reporter: Reporter) -> Any:
+    """The raster of one env step on the deployment's track, if its NIR file is still there
+    (as recorded, or beside the deployment directory)."""
+    from snnkart.errors import SnnkartError
     from snnkart.eval.trace import trace_step
 
-    nir_file = report["deploy"].get("nir_file")
-    if not nir_file or not Path(nir_file).is_file():
+    d = report["deploy"]
+    recorded = Path(d.get("nir_file") or "policy.nir")
+    base = deploy_dir if deploy_dir.is_dir() else deploy_dir.parent
+    found = next((p for p in (recorded, base.parent / recorded.name, base / recorded.name)
+                  if p.is_file()), None)  # fmt: skip
+    if found is None:
+        reporter.message(f"note: no raster figure: the NIR file {recorded} is not there")
         return None
-    return trace_step(nir_file, step, seed=report["deploy"]["first_seed"])
+    track = None if d.get("track_source") in ("embedded", None) else d.get("track_given")
+    try:
+        return trace_step(found, step, seed=d["first_seed"], track=track)
+    except SnnkartError as exc:
+        reporter.message(f"note: no raster figure: {exc}")
+        return None

@@ -351,8 +351,12 @@ def report(
         ),
     ] = None,
     host_profile: Annotated[
-        str, typer.Option(help="digital profile pricing the SNN's host-side work")
-    ] = "horowitz45_fp32",
+        str | None,
+        typer.Option(
+            help="digital profile pricing the SNN's host-side work (default: the "
+            "profile of the ANN it is compared with)"
+        ),
+    ] = None,
     sweep: Annotated[
         Path | None, typer.Option(help="a bench_sparsity JSON: the accuracy-energy figure")
     ] = None,

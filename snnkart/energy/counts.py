@@ -109,7 +109,8 @@ def host_ops(net: Network, fixed_point: bool = False) -> list[HostOp]:
         if net.input_scale:
             ops.append(HostOp("input scale", "mult", n_in))
     if fixed_point:
-        ops.append(HostOp("fixed point: scale the current to integers", "mult", n1))
+        scaled = T * n1 if net.encoding == "rate" else n1
+        ops.append(HostOp("fixed point: scale the current to integers", "mult", scaled))
     if net.readout:
         ops += [
             HostOp("readout: spike counts / T", "mult", last),
@@ -166,6 +167,39 @@ class SnnCounts:
             host=tuple(host_ops(net, fixed_point=record.get("precision") == "fixed")),
         )
 
+    @classmethod
+    def of_sweep(cls, run: dict[str, Any]) -> SnnCounts:
+        """A ``bench_sparsity`` run's record (per-step counts, as the deployment measured)."""
+        net_info = run["network"]
+        net = cls._sweep_network(run, net_info)
+        L = len(net.sizes)
+        zeros = [0.0] * L
+
+        def chip(values: list[float]) -> tuple[float, ...]:
+            return (*values[:-1], 0.0)  # the last layer's fan-out is the host's readout
+
+        return cls(
+            net=net,
+            env_steps=int(run["env_steps"]),
+            episodes=1,
+            spikes=tuple(run["spikes_per_step"]),
+            synops=chip(run["synops_per_step"]),
+            neuron_updates=tuple(run["neuron_updates_per_step"]),
+            overhead_spikes=tuple(run.get("overhead_spikes_per_step", zeros)),
+            overhead_synops=chip(run.get("overhead_synops_per_step", zeros)),
+            overhead_neuron_updates=tuple(run.get("overhead_neuron_updates_per_step", zeros)),
+            host=tuple(host_ops(net, fixed_point=run.get("precision") == "fixed")),
+        )
+
+    @staticmethod
+    def _sweep_network(run: dict[str, Any], net: dict[str, Any]) -> Network:
+        return Network(
+            n_in=int(net["n_in"]), sizes=tuple(run["sizes"]), n_out=int(net["n_out"]),
+            num_steps=int(run["num_steps"]), encoding=str(run.get("encoding", "current")),
+            readout=bool(net.get("readout", True)), input_scale=bool(net.get("input_scale", False)),
+            action_mode=str(run.get("action_mode", "discrete")),
+        )  # fmt: skip
+
     def scaled(self, density: float) -> SnnCounts:
         """The same policy with ``density`` times its spikes (and so its synaptic ops)."""
 
@@ -188,19 +222,33 @@ class SnnCounts:
         return [s / (n * T) for s, n in zip(self.spikes, self.net.sizes, strict=True)]
 
     def neurobench(self) -> dict[str, float]:
-        """NeuroBench-style counts per inference (Yik et al. 2025): effective MACs (real-valued
-        inputs: the host's first layer and readout), effective ACs (binary inputs: the chip's
-        synaptic ops) and dense ops (every input non-zero at every step), and the activation
-        sparsity (the fraction of neuron-steps without a spike)."""
+        """NeuroBench's counts per inference (Yik et al. 2025; snn-nir-lava.md §3.4), as its
+        SynapticOperations would count the snntorch policy: a layer is AC when all its inputs
+        are in {-1, 0, 1}, else MAC; the first layer is fed at every one of the T steps (real
+        values: MACs; rate-coded spikes: ACs, counted densely as input spikes are not
+        recorded); the readout takes real-valued rates (MACs, once); ``dense_ops`` sets every
+        input to 1. Biases are not counted. Activation sparsity: neuron-steps without a spike.
+        :meth:`deployed` gives what the deployment actually computes."""
         net, T = self.net, self.net.num_steps
-        macs = sum(op.count for op in self.host if op.op == "mac")
-        first = net.n_in * net.sizes[0] * (1 if net.encoding == "current" else T)
+        first = T * net.n_in * net.sizes[0]
         readout = net.sizes[-1] * net.n_out if net.readout else 0
+        rate = net.encoding == "rate"
         return {
-            "effective_macs": macs,
-            "effective_acs": sum(self.synops),
+            "effective_macs": (0 if rate else first) + readout,
+            "effective_acs": (first if rate else 0) + sum(self.synops),
             "dense_ops": first + T * net.chip_synapses + readout,
             "activation_sparsity": 1.0 - sum(self.spikes) / (net.neurons * T),
+        }
+
+    def deployed(self) -> dict[str, float]:
+        """What the deployment computes per inference: the host's MACs (the first layer once
+        per env step with current encoding, the readout), the chip's synaptic operations
+        (ACs), its neuron updates, and the pipeline's extra neuron updates."""
+        return {
+            "host_macs": sum(op.count for op in self.host if op.op == "mac"),
+            "chip_synaptic_ops": sum(self.synops) + sum(self.overhead_synops),
+            "chip_neuron_updates": sum(self.neuron_updates) + sum(self.overhead_neuron_updates),
+            "spikes": sum(self.spikes) + sum(self.overhead_spikes),
         }
 
     def footprint(self) -> dict[str, int]:

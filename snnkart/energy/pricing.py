@@ -149,17 +149,16 @@ class Comparison:
             out.update(density=None, reason="the clocked neuron updates and the host work alone "
                        "cost at least as much as the ANN: no sparsity can break even")  # fmt: skip
             return out
-        d = (e_ann - fixed) / variable if variable > 0 else float("inf")
-        rates = self.snn.firing_rates()
+        if variable <= 0:
+            out.update(density=None, reason="the SNN's energy does not depend on its spikes "
+                       "here (no spikes, or spikes priced at 0), and it is below the ANN's")  # fmt: skip
+            return out
+        d = (e_ann - fixed) / variable
         out.update(
             density=d,
-            firing_rates=[r * d for r in rates],
+            firing_rates=[r * d for r in self.snn.firing_rates()],
             synops=d * sum(self.snn.synops),
-            reason="the SNN wins below this density" if d < float("inf") else "any density",
+            reason="the SNN uses less energy than the ANN below this density (spikes relative to "
+            "the deployed policy's; pipeline fill/drain spikes scaled alike)",
         )
         return out
-
-    def density_curve(self, densities: Iterable[float]) -> list[tuple[float, float]]:
-        e_ann = self.energies()[1]
-        return [(d, total(snn_terms(self.snn.scaled(d), self.chip, self.host)) / e_ann)
-                for d in densities]  # fmt: skip

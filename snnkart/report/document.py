@@ -39,7 +39,7 @@ REFERENCES = (
     "Davies et al., Loihi: a neuromorphic manycore processor with on-chip learning, IEEE Micro "
     "38(1):82-99, 2018 (Table 2, pre-silicon).",
     "Horowitz, Computing's energy problem (and what we can do about it), ISSCC 2014.",
-    "Merolla et al., A million spiking-neuron integrated circuit ..., Science 345(6197), 2014.",
+    "Merolla et al., Science 2014 (TrueNorth: 26 pJ per synaptic event, measured, all-in).",
     "Höppner et al., arXiv 1903.08941, 2019 (SpiNNaker 2 prototype), as encoded by "
     "KerasSpiking's ModelEnergy.",
     "Yik et al., The NeuroBench framework ..., Nat. Commun. 16:1545, 2025.",
@@ -83,7 +83,7 @@ def headline(report: dict[str, Any]) -> list[dict[str, str]]:
             "ANN": ann["label"], "ANN on": c["ann_profile"], "ANN nJ/inference": _nj(c["ann_pj"]),
             "SNN/ANN": f"{c['ratio']:.3g}" if c["ratio"] is not None else "-",
             "SNN µJ/episode": f"{c['snn_per_episode_pj'] / 1e6:.3g}",
-            "ANN µJ/episode": f"{c['ann_per_episode_pj'] / 1e6:.3g}",
+            "ANN µJ/episode": _uj(c["ann_per_episode_pj"]),
             "SNN µJ/return": _uj(c["snn_per_return_pj"]),
             "ANN µJ/return": _uj(c["ann_per_return_pj"]),
             "SNN success": _pct(snn_task["success_rate"]),
@@ -176,7 +176,8 @@ def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
         "## Verdict", "", *[f"- {line}" for line in _verdict(report)], "",
         "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
         "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
-        f"NeuroBench-style: {snn['neurobench']}. Footprint: {snn['footprint']}. "
+        f"As deployed: {snn['deployed']}. NeuroBench's definitions (the first layer fed at every "
+        f"step): {snn['neurobench']}. Footprint: {snn['footprint']}. "
         f"Latency: {snn['latency']}.", "",
         "## What the estimate includes", "", *[f"- {x}" for x in INCLUDES], "",
         "## What it leaves out", "", *[f"- {x}" for x in LEAVES_OUT], "",
