@@ -76,7 +76,9 @@ def one_run(
     seconds = time.perf_counter() - start  # 0-ish when the run was reused
     rows = [json.loads(x) for x in (run_dir / "metrics.jsonl").read_text().splitlines() if x]
     steps = [r["global_step"] for r in rows]
-    train_seconds = sum((b - a) / r["charts/SPS"] for a, b, r in zip([0, *steps], steps, rows))
+    train_seconds = sum(
+        (b - a) / r["charts/SPS"] for a, b, r in zip([0, *steps[:-1]], steps, rows, strict=True)
+    )
     record = json.loads((deploy_dir / "deploy.json").read_text())
     meta = json.loads((run_dir / "checkpoint.json").read_text())
     counts, summary = record["counts"], record["summary"]
