@@ -84,7 +84,7 @@ def report_summary(path: Path) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=400_000)
+    parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--ann-steps", type=int, default=300_000)
     parser.add_argument("--lava-episodes", type=int, default=20)
     parser.add_argument("--eval-episodes", type=int, default=50)

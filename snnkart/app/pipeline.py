@@ -28,12 +28,15 @@ from snnkart.io import write_json
 
 DEMO_ENV = "grid"
 DEMO_TRACK = "small_S"
-DEMO_STEPS = 400_000
+DEMO_STEPS = 300_000
 ANN_STEPS = 300_000
 DEMO_SEED = 1
-DEMO_SNN_SETTINGS: dict[str, object] = {}
+DEMO_SNN_SETTINGS: dict[str, object] = {"snn.num_steps": 4, "snn.rate_reg": 0.05}
 """The demo's own SNN settings on top of the grid SNN defaults (the per-env training defaults
-stay as they are)."""
+stay as they are): the sparse point ``t4-r0.05`` of the committed sparsity sweep
+(``benchmarks/results/bench_sparsity-grid.json``): T = 4 and a firing-rate penalty of 0.05 keep
+96-100 % fixed-point success over 3 seeds with 15x fewer synaptic operations per inference than
+the dense default (T = 8, no penalty)."""
 SWEEP = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "bench_sparsity-grid.json"
 """The committed sparsity sweep the report's accuracy-energy figure shows (in a checkout)."""
 QUANT_EPISODES = 50

@@ -72,7 +72,7 @@ def demo(
     out: Annotated[Path, typer.Option("--out", "-o", help="directory for everything")] = Path(
         "runs/demo"
     ),
-    steps: Annotated[int, typer.Option(help="training steps of the SNN")] = 400_000,
+    steps: Annotated[int, typer.Option(help="training steps of the SNN")] = 300_000,
     ann_steps: Annotated[int, typer.Option(help="training steps of the ANN baseline")] = 300_000,
     lava_episodes: Annotated[int, typer.Option(help="episodes on lava-sim (fixed)")] = 20,
     eval_episodes: Annotated[
