@@ -8,9 +8,9 @@ Steps, each writing into ``out`` (default ``runs/demo``) and skipped when alread
    (:data:`DEMO_SNN_SETTINGS`: the sparse point of the committed sparsity sweep) into
    ``out/snn`` (resumable).
 2. ``snnkart train --policy ann`` (64-64, the SNN's widths) on the same track into ``out/ann``.
-3. Score the torch policy and the fixed-point reference (the bit-exact twin of Lava fixed) on the
+3. ``snnkart export --nir`` to ``out/policy.nir`` (+ manifest).
+4. Score the torch policy and the fixed-point reference (the bit-exact twin of Lava fixed) on the
    same 50 seeded episodes: the quantisation's effect on the success rate.
-4. ``snnkart export --nir`` to ``out/policy.nir`` (+ manifest).
 5. ``snnkart deploy --backend lava-sim`` in fixed point and in float, each step checked against
    the numpy reference, results in ``out/deploy-lava-sim-<precision>/deploy.json``.
 6. ``snnkart report`` of the fixed-point deployment against the ANN run, in ``out/report``.
@@ -106,7 +106,7 @@ def _export(run_dir: Path, out: Path, reporter: Reporter) -> Path:
     from snnkart.export.nir_export import export_nir
     from snnkart.rl.trained import load_run
 
-    reporter.message("[4/6] exporting the spiking actor to NIR")
+    reporter.message("[3/6] exporting the spiking actor to NIR")
     nir_path, manifest_file = export_nir(load_run(run_dir), out / "policy.nir")
     reporter.message(f"      {nir_path}\n      {manifest_file}")
     return nir_path
@@ -121,7 +121,7 @@ def _quantisation(
     from snnkart.eval.episodes import EvalSummary, run_episodes
     from snnkart.rl.trained import TorchPredictor, load_run
 
-    reporter.message(f"[3/6] torch policy vs its fixed-point twin on the same {episodes} episodes")
+    reporter.message(f"[4/6] torch policy vs its fixed-point twin on the same {episodes} episodes")
     run = load_run(run_dir)
     env = run.config.make_env(track=run.track)
     summaries = {}

@@ -94,13 +94,19 @@ def print_headline(report: dict[str, Any], rows: list[dict[str, str]]) -> None:
             "its energy numbers are not a result.[/]"
         )
     primary = "run" if "run" in report["ann"] else "same_width"
-    label = report["ann"][primary]["label"]
-    table = Table(title=f"energy per inference: SNN vs {label}")
-    keys = ["SNN on", "SNN nJ/inference", "ANN on", "ANN nJ/inference", "SNN/ANN",
-            "SNN success", "ANN success"]  # fmt: skip
-    for key in keys:
-        table.add_column(key, justify="right")
+    ann = report["ann"][primary]
+    snn_task, ann_task = report["snn"]["task"], ann["task"]
+    ann_rate = f"{ann_task['success_rate']:.0%}" if ann_task else "not run"
+    table = Table(
+        title=f"energy per inference, SNN vs {ann['label']}",
+        caption=f"success: SNN {snn_task['success_rate']:.0%}, ANN {ann_rate} "
+        f"({snn_task['episodes']} episodes); report.html has every pair and figure",
+    )
+    keys = {"SNN on": "SNN on", "ANN on": "ANN on", "SNN nJ/inference": "SNN nJ",
+            "ANN nJ/inference": "ANN nJ", "SNN/ANN": "SNN/ANN"}  # fmt: skip
+    for title in keys.values():
+        table.add_column(title, justify="right")
     for row in rows:
-        if row["ANN"] == label:
+        if row["ANN"] == ann["label"]:
             table.add_row(*(row[k] for k in keys))
     console.print(table)

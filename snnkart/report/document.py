@@ -61,6 +61,10 @@ def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x:.0f} %"
 
 
+def _host(name: str) -> str:
+    return name if name.startswith("the ") else f"`{name}`"
+
+
 def _parity(deploy: dict[str, Any]) -> str:
     """How the deployment's counts were cross-checked (deploy.json's parity)."""
     p = deploy.get("parity") or {}
@@ -144,19 +148,28 @@ def _counts_rows(report: dict[str, Any]) -> list[dict[str, str]]:
     return rows
 
 
+def _times(ratio: float) -> str:
+    return f"{ratio:,.0f}x" if ratio >= 100 else f"{ratio:.3g}x"
+
+
 def _verdict(report: dict[str, Any]) -> list[str]:
-    lines = []
+    """One line per neuromorphic profile: the SNN's energy as a multiple of the primary ANN's on
+    each digital profile, and the break-even spike density where there is one."""
     primary = "run" if "run" in report["ann"] else "same_width"
-    for c in report["comparisons"]:
-        if c["ann"] != primary or c["ratio"] is None:
-            continue
-        word = "less" if c["ratio"] < 1 else "more"
-        factor = 1 / c["ratio"] if c["ratio"] < 1 else c["ratio"]
-        be = c["break_even"]
-        need = (f"break-even at {be['density']:.2f}x today's spikes" if be.get("density") is not None
-                else "cannot break even at any sparsity")  # fmt: skip
-        lines.append(f"SNN on {c['snn_profile']} uses {factor:.2g}x {word} energy than the ANN "
-                     f"on {c['ann_profile']} ({need}).")  # fmt: skip
+    label = report["ann"][primary]["label"]
+    lines = []
+    for chip in dict.fromkeys(c["snn_profile"] for c in report["comparisons"]):
+        parts = []
+        for c in report["comparisons"]:
+            if c["ann"] != primary or c["snn_profile"] != chip or c["ratio"] is None:
+                continue
+            be = c["break_even"]
+            if be.get("density") is None:
+                note = "no sparsity breaks even"
+            else:
+                note = f"wins below {be['density']:.2f}x today's spikes"
+            parts.append(f"{_times(c['ratio'])} the {label} on {c['ann_profile']} ({note})")
+        lines.append(f"SNN on {chip}: " + "; ".join(parts) + ".")
     return lines
 
 
@@ -172,7 +185,7 @@ def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
         f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). "
         f"Network {report['network']['n_in']} -> {report['network']['sizes']} -> "
         f"{report['network']['n_out']}, T = {report['network']['num_steps']}. "
-        f"Host work priced on `{report['host_profile']}`. {_parity(d)}", "",
+        f"Host work priced on {_host(report['host_profile'])}. {_parity(d)}", "",
         "## Verdict", "", *[f"- {line}" for line in _verdict(report)], "",
         "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
         "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
@@ -229,7 +242,8 @@ def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
         for title, items in (("Verdict", _verdict(report)), ("What the estimate includes", INCLUDES),
                              ("What it leaves out", LEAVES_OUT), ("References", REFERENCES))
     }  # fmt: skip
-    intro = html.escape(md_sections.split("\n## ")[0].split("\n", 2)[-1].replace("**", "").strip())
+    intro = md_sections.split("\n## ")[0].split("\n", 2)[-1]
+    intro = html.escape(intro.replace("**", "").replace("`", "").strip())
     return (
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>snnkart energy report</title>"
         f"<style>{CSS}</style></head><body><h1>snnkart energy report</h1>{warn}<p>{intro}</p>"

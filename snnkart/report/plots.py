@@ -161,6 +161,7 @@ def raster(raster: np.ndarray, membranes: np.ndarray, sizes: Sequence[int],
         ax = axes[i][0]
         ax.scatter(t, neuron, marker="|", s=40, color="black")
         ax.set_xlim(-0.5, T - 0.5)
+        ax.set_xticks(range(T))
         ax.set_ylim(-0.5, sizes[i] - 0.5)
         ax.set_ylabel(f"layer {i + 1} neuron")
         ax.set_title(f"layer {i + 1}: {int(spikes.sum())} spikes in {T} steps", fontsize=9)
@@ -169,6 +170,7 @@ def raster(raster: np.ndarray, membranes: np.ndarray, sizes: Sequence[int],
         for j in _telling_neurons(spikes):
             ax.plot(range(T), v[:, j], marker=".", label=f"neuron {j}")
         ax.axhline(thresholds[i], color="#d62728", linestyle="--", linewidth=1, label="threshold")
+        ax.set_xticks(range(T))
         low, high = ax.get_ylim()
         ax.set_ylim(low, high + 0.35 * (high - low))  # room for the legend
         ax.set_ylabel("membrane (before reset)")
