@@ -203,6 +203,24 @@ def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> 
             "ann_64_64_pj": ann_pj}  # fmt: skip
 
 
+def _deploy_section(record: dict[str, Any], deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
+    """Where the counts come from: the deployment, its env and track, and its parity."""
+    return {
+        "file": str(deploy_dir),
+        "backend": record["backend"],
+        "precision": record["precision"],
+        "nir_file": record.get("nir_file"),
+        "env": record["env"]["env"],
+        "track": record["env"].get("track"),
+        "track_given": record["env"].get("track_given"),
+        "track_source": record["env"].get("track_source"),
+        "episodes": snn.episodes,
+        "env_steps": snn.env_steps,
+        "first_seed": record["first_seed"],
+        "parity": record.get("parity"),
+    }
+
+
 def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
                  host: str | None = None, sweep: Path | None = None) -> dict[str, Any]:  # fmt: skip
     """Everything the report says, as one JSON-ready record."""
@@ -220,20 +238,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
     success = record["summary"]["success_rate"]
     return {
         "schema": REPORT_SCHEMA,
-        "deploy": {
-            "file": str(deploy_dir),
-            "backend": record["backend"],
-            "precision": record["precision"],
-            "nir_file": record.get("nir_file"),
-            "env": record["env"]["env"],
-            "track": record["env"].get("track"),
-            "track_given": record["env"].get("track_given"),
-            "track_source": record["env"].get("track_source"),
-            "episodes": snn.episodes,
-            "env_steps": snn.env_steps,
-            "first_seed": record["first_seed"],
-            "parity": record.get("parity"),
-        },
+        "deploy": _deploy_section(record, deploy_dir, snn),
         "drives": success >= DRIVES,
         "network": {
             "n_in": net.n_in,

@@ -6,16 +6,15 @@ Each command imports what it needs inside its own function, so ``snnkart --help`
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, NoReturn, TypeVar
+from typing import Annotated
 
 import typer
 
 from snnkart.cli.console import ConsoleReporter, print_headline
+from snnkart.cli.energy import plot_app, report
+from snnkart.cli.guard import fail, guard, interrupted_exit
 from snnkart.errors import SnnkartError
-
-T = TypeVar("T")
 
 app = typer.Typer(
     name="snnkart",
@@ -34,11 +33,6 @@ TrackOpt = Annotated[
 ]
 
 
-def _fail(message: str, code: int = 2) -> NoReturn:
-    typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
-    raise typer.Exit(code)
-
-
 def _check_env_and_track(env: str, track: str) -> str:
     from snnkart.envs import resolve_env_name
     from snnkart.envs.tracks import load_track
@@ -47,7 +41,7 @@ def _check_env_and_track(env: str, track: str) -> str:
         name = resolve_env_name(env)
         load_track(track)
     except SnnkartError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     return name
 
 
@@ -92,17 +86,17 @@ def demo(
         try:
             result = render_gif("steer", "small_S", scripted_gif, ConsoleReporter())
         except SnnkartError as exc:
-            _fail(str(exc))
+            fail(str(exc))
         status = "finished" if result.finished else "did not finish"
         typer.echo(f"scripted driver on steer/small_S: {status}; GIF written to {scripted_gif}")
         return
     if min(steps, ann_steps, lava_episodes, eval_episodes) < 1:
-        _fail("--steps, --ann-steps, --lava-episodes and --eval-episodes must be >= 1")
+        fail("--steps, --ann-steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
     from snnkart.app.pipeline import run_pipeline
     from snnkart.report.document import headline
 
-    finished = _guard(
+    finished = guard(
         lambda: run_pipeline(
             out, ConsoleReporter(), steps, lava_episodes, eval_episodes, ann_steps
         ),
@@ -152,11 +146,11 @@ def train(
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
         code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume=resume)
     except KeyboardInterrupt as exc:  # before training began: nothing to save yet
-        _interrupted(exc, "stopped before training began; the run directory is as it was")
+        interrupted_exit(exc, "stopped before training began; the run directory is as it was")
     except (CheckpointWriteError, OSError) as exc:
-        _fail(_write_failure(exc, run_dir))
+        fail(_write_failure(exc, run_dir))
     except SnnkartError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     raise typer.Exit(code)
 
 
@@ -216,10 +210,10 @@ def eval_(
     from snnkart.app.evaluate import run_eval, run_eval_exported
 
     if episodes < 1:
-        _fail(f"--episodes must be >= 1, got {episodes}")
+        fail(f"--episodes must be >= 1, got {episodes}")
     if backend != "torch":
         reporter = ConsoleReporter()
-        _guard(
+        guard(
             lambda: run_eval_exported(
                 run_dir, backend, precision, episodes, seed, checkpoint, out, reporter, env, track
             ),
@@ -227,10 +221,10 @@ def eval_(
         )
         return
     if run_dir.suffix == ".nir":
-        _fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
+        fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:
-        _fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
-    _guard(
+        fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
+    guard(
         lambda: run_eval(
             run_dir, episodes, seed, checkpoint, render, video, out, ConsoleReporter(), track
         ),
@@ -252,7 +246,7 @@ def replay(
     """Replay the episodes recorded during training, several karts at once."""
     from snnkart.app.replay import run_replay
 
-    _guard(lambda: run_replay(run_dir, mode, out, every, ConsoleReporter()))
+    guard(lambda: run_replay(run_dir, mode, out, every, ConsoleReporter()))
 
 
 @app.command()
@@ -266,7 +260,7 @@ def export(
 ) -> None:
     """Export a spiking policy to NIR, with a manifest of what NIR does not carry."""
     if not nir_format:
-        _fail("choose an export format: --nir")
+        fail("choose an export format: --nir")
     from snnkart.export.nir_export import export_nir
     from snnkart.rl.trained import load_run
 
@@ -274,27 +268,8 @@ def export(
         run = load_run(run_dir, checkpoint)
         nir_path, manifest = export_nir(run, out or run_dir / "policy.nir")
     except SnnkartError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     typer.echo(f"NIR graph written to {nir_path}\nmanifest written to {manifest}")
-
-
-def _guard(call: Callable[[], T], interrupted: str | None = None) -> T:
-    """Run a workflow, turning its failures into the command's exit status: 2 for bad input
-    (``error: ...``), 4 for a parity mismatch (its summary is already shown), 130/143 for
-    Ctrl-C/SIGTERM with ``interrupted`` saying what was kept. Anything else is a bug and
-    propagates with its traceback."""
-    from snnkart.errors import ParityError
-
-    try:
-        return call()
-    except KeyboardInterrupt as exc:
-        if interrupted is None:
-            raise
-        _interrupted(exc, interrupted)
-    except ParityError as exc:
-        _fail(str(exc), code=4)
-    except SnnkartError as exc:
-        _fail(str(exc))
 
 
 def _deploy_interrupted(backend: str) -> str:
@@ -328,7 +303,7 @@ def deploy(
         out = nir_file.parent / f"deploy-{backend}-{precision}"
     from snnkart.app.deploy import run_deploy_reported
 
-    _guard(
+    guard(
         lambda: run_deploy_reported(
             nir_file, backend, precision, episodes, seed, env, track, out, ConsoleReporter()
         ),
@@ -336,75 +311,8 @@ def deploy(
     )
 
 
-@app.command()
-def report(
-    deploy_dir: Annotated[Path, typer.Argument(help="a deployment: the --out of snnkart deploy")],
-    ann: Annotated[
-        Path | None, typer.Option("--ann", help="an ANN run to compare with (trained, evaluated)")
-    ] = None,
-    profile: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--profile",
-            "-p",
-            help="hardware profile name or TOML file (repeat); default: every built-in one",
-        ),
-    ] = None,
-    host_profile: Annotated[
-        str | None,
-        typer.Option(
-            help="digital profile pricing the SNN's host-side work (default: the "
-            "profile of the ANN it is compared with)"
-        ),
-    ] = None,
-    sweep: Annotated[
-        Path | None, typer.Option(help="a bench_sparsity JSON: the accuracy-energy figure")
-    ] = None,
-    step: Annotated[int, typer.Option(help="env step shown in the raster figure")] = 20,
-    out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="directory (default: the deployment's)")
-    ] = None,
-) -> None:
-    """Energy per inference and per episode of the deployed spiking policy against the ANN
-    baseline on hardware profiles, with the task performance of both: report.json, .md, .html."""
-    from snnkart.app.report import run_report
-    from snnkart.report.document import headline
-
-    reporter = ConsoleReporter()
-    record = _guard(
-        lambda: run_report(deploy_dir, ann, profile, out, reporter, host_profile, sweep, step)
-    )
-    print_headline(record, headline(record))
-
-
-plot_app = typer.Typer(help="Figures of a deployed policy.", no_args_is_help=True)
+app.command()(report)
 app.add_typer(plot_app, name="plot")
-
-
-@plot_app.command("raster")
-def plot_raster(
-    nir_file: Annotated[Path, typer.Argument(help="policy.nir (its manifest beside it)")],
-    step: Annotated[int, typer.Option(help="env step of the episode to show (0-based)")] = 20,
-    seed: Annotated[int, typer.Option(help="seed of the episode")] = 10_000,
-    track: Annotated[
-        str | None, typer.Option("--track", "-t", help="default: the manifest's")
-    ] = None,
-    out: Annotated[Path, typer.Option("--out", "-o", help="PNG to write")] = Path("raster.png"),
-) -> None:
-    """Spike raster and membrane traces of every layer for one env step (float32 reference)."""
-    from snnkart.app.plot import run_plot_raster
-
-    _guard(lambda: run_plot_raster(nir_file, step, seed, track, out, ConsoleReporter()))
-
-
-def _interrupted(exc: KeyboardInterrupt, what: str) -> NoReturn:
-    """Report Ctrl-C/SIGTERM and exit with the shell's status for it (130, 143)."""
-    from snnkart.faults import Interrupted
-
-    code = exc.exit_code if isinstance(exc, Interrupted) else 130
-    name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
-    typer.secho(f"interrupted ({name}): {what}", fg=typer.colors.YELLOW, err=True)
-    raise typer.Exit(code)
 
 
 def main() -> None:

@@ -104,9 +104,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._reset_vehicle()
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
         self._renderer: Any = None
-        self.activity: list[tuple[str, float]] = []
-        """Firing rate per spiking layer of the policy driving, for the side panel (set by
-        whoever drives; empty: not shown)."""
+        self.activity: list[tuple[str, float]] = []  # (layer, firing rate) for the side panel
 
     def _check_modes(self, action_mode: str, render_mode: str | None) -> None:
         if action_mode not in ACTION_MODES:

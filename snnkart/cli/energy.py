@@ -1,0 +1,71 @@
+"""``snnkart report`` and ``snnkart plot``: the energy report and the figures of a deployed
+policy."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from snnkart.cli.console import ConsoleReporter, print_headline
+from snnkart.cli.guard import guard
+
+
+def report(
+    deploy_dir: Annotated[Path, typer.Argument(help="a deployment: the --out of snnkart deploy")],
+    ann: Annotated[
+        Path | None, typer.Option("--ann", help="an ANN run to compare with (trained, evaluated)")
+    ] = None,
+    profile: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--profile",
+            "-p",
+            help="hardware profile name or TOML file (repeat); default: every built-in one",
+        ),
+    ] = None,
+    host_profile: Annotated[
+        str | None,
+        typer.Option(
+            help="digital profile pricing the SNN's host-side work (default: the "
+            "profile of the ANN it is compared with)"
+        ),
+    ] = None,
+    sweep: Annotated[
+        Path | None, typer.Option(help="a bench_sparsity JSON: the accuracy-energy figure")
+    ] = None,
+    step: Annotated[int, typer.Option(help="env step shown in the raster figure")] = 20,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="directory (default: the deployment's)")
+    ] = None,
+) -> None:
+    """Energy per inference and per episode of the deployed spiking policy against the ANN
+    baseline on hardware profiles, with the task performance of both: report.json, .md, .html."""
+    from snnkart.app.report import run_report
+    from snnkart.report.document import headline
+
+    reporter = ConsoleReporter()
+    record = guard(
+        lambda: run_report(deploy_dir, ann, profile, out, reporter, host_profile, sweep, step)
+    )
+    print_headline(record, headline(record))
+
+
+plot_app = typer.Typer(help="Figures of a deployed policy.", no_args_is_help=True)
+
+
+@plot_app.command("raster")
+def plot_raster(
+    nir_file: Annotated[Path, typer.Argument(help="policy.nir (its manifest beside it)")],
+    step: Annotated[int, typer.Option(help="env step of the episode to show (0-based)")] = 20,
+    seed: Annotated[int, typer.Option(help="seed of the episode")] = 10_000,
+    track: Annotated[
+        str | None, typer.Option("--track", "-t", help="default: the manifest's")
+    ] = None,
+    out: Annotated[Path, typer.Option("--out", "-o", help="PNG to write")] = Path("raster.png"),
+) -> None:
+    """Spike raster and membrane traces of every layer for one env step (float32 reference)."""
+    from snnkart.app.plot import run_plot_raster
+
+    guard(lambda: run_plot_raster(nir_file, step, seed, track, out, ConsoleReporter()))

@@ -1,0 +1,47 @@
+"""How a command ends: a user error is ``error: ...`` and an exit status, Ctrl-C and SIGTERM
+say what was kept, anything else is a bug and shows its traceback."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NoReturn, TypeVar
+
+import typer
+
+from snnkart.errors import SnnkartError
+
+T = TypeVar("T")
+
+
+def fail(message: str, code: int = 2) -> NoReturn:
+    typer.secho(f"error: {message}", fg=typer.colors.RED, err=True)
+    raise typer.Exit(code)
+
+
+def guard(call: Callable[[], T], interrupted: str | None = None) -> T:
+    """Run a workflow, turning its failures into the command's exit status: 2 for bad input
+    (``error: ...``), 4 for a parity mismatch (its summary is already shown), 130/143 for
+    Ctrl-C/SIGTERM with ``interrupted`` saying what was kept. Anything else is a bug and
+    propagates with its traceback."""
+    from snnkart.errors import ParityError
+
+    try:
+        return call()
+    except KeyboardInterrupt as exc:
+        if interrupted is None:
+            raise
+        interrupted_exit(exc, interrupted)
+    except ParityError as exc:
+        fail(str(exc), code=4)
+    except SnnkartError as exc:
+        fail(str(exc))
+
+
+def interrupted_exit(exc: KeyboardInterrupt, what: str) -> NoReturn:
+    """Report Ctrl-C/SIGTERM and exit with the shell's status for it (130, 143)."""
+    from snnkart.faults import Interrupted
+
+    code = exc.exit_code if isinstance(exc, Interrupted) else 130
+    name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
+    typer.secho(f"interrupted ({name}): {what}", fg=typer.colors.YELLOW, err=True)
+    raise typer.Exit(code)
