@@ -104,7 +104,9 @@ class Trainer:
         self.spec = env_spec(self.env0)
         torch.manual_seed(cfg.seed)
         self.policy = policy_for(cfg, self.env0)
-        self.optimizer = torch.optim.Adam(self.policy.parameters(), lr=p.learning_rate, eps=1e-5)
+        self.optimizer = torch.optim.Adam(
+            self.policy.parameters(), lr=p.learning_rate, eps=1e-5, foreach=True
+        )
         self.ent_coef = p.ent_coef  # annealed with the learning rate when ppo.anneal_ent
         self.rate_reg = cfg.snn.rate_reg if cfg.policy == "snn" else 0.0  # snn.rate_reg_warmup
         self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
@@ -258,7 +260,7 @@ class Trainer:
                         first_ratio_dev = (ratio - 1.0).abs().max().item()
                 self.optimizer.zero_grad()
                 losses["loss"].backward()
-                nn.utils.clip_grad_norm_(self.policy.parameters(), p.max_grad_norm)
+                nn.utils.clip_grad_norm_(self.policy.parameters(), p.max_grad_norm, foreach=True)
                 self.optimizer.step()
                 self.policy.clamp_parameters()
             if p.target_kl is not None and approx_kl > p.target_kl:
