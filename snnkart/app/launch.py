@@ -1,0 +1,179 @@
+"""Many training runs on one machine: a local process pool (the launcher's default).
+
+Each run is one ``snnkart train`` process with one torch thread, as many at once as there are
+cores. The pool is resumable: a run whose checkpoint already covers its steps is not trained
+again, one that was interrupted is resumed from its checkpoint. Ctrl-C or SIGTERM reaches every
+running run (each saves a checkpoint at its next iteration boundary, as ``snnkart train`` does);
+the pool waits for them to exit and leaves no worker process behind. Results are gathered from
+each run's checkpoint metadata into one record per run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from snnkart import faults
+from snnkart.app.reporter import Reporter
+from snnkart.errors import UsageError
+from snnkart.rl.config import TrainConfig
+
+STOP_GRACE_S = 120.0
+"""How long the pool waits for interrupted runs to save their checkpoints before killing them."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of the list: its name (the run directory's) and its resolved config."""
+
+    name: str
+    config: TrainConfig
+
+
+@dataclass
+class RunResult:
+    name: str
+    run_dir: str
+    status: str  # "done", "reused", "interrupted" or "failed"
+    global_step: int
+    total_steps: int
+    first_finish_step: int | None
+    finishes: int
+    episodes: int
+    seconds: float
+    error: str | None = None
+
+
+def _done_steps(run_dir: Path) -> int:
+    try:
+        return int(json.loads((run_dir / "checkpoint.json").read_text())["global_step"])
+    except (OSError, ValueError, KeyError):
+        return 0
+
+
+def _result(
+    spec: RunSpec, run_dir: Path, status: str, seconds: float, error: str | None
+) -> RunResult:
+    meta: dict[str, Any] = {}
+    with contextlib.suppress(OSError, ValueError):
+        meta = json.loads((run_dir / "checkpoint.json").read_text())
+    first = meta.get("first_finish_step", -1)
+    return RunResult(
+        name=spec.name, run_dir=str(run_dir), status=status,
+        global_step=int(meta.get("global_step", 0)), total_steps=spec.config.total_steps,
+        first_finish_step=None if first is None or first < 0 else int(first),
+        finishes=int(meta.get("finishes", 0)), episodes=int(meta.get("episodes", 0)),
+        seconds=seconds, error=error,
+    )  # fmt: skip
+
+
+class LocalPool:
+    """Runs a list of :class:`RunSpec` under ``out`` (``out/<name>``), ``jobs`` at a time."""
+
+    def __init__(self, out: Path, jobs: int | None = None) -> None:
+        self.out = Path(out)
+        self.jobs = jobs or os.cpu_count() or 1
+        if self.jobs < 1:
+            raise UsageError(f"jobs must be >= 1, got {self.jobs}")
+
+    def run(self, specs: list[RunSpec], reporter: Reporter) -> list[RunResult]:
+        """Train every run not yet complete; return one result per spec (in order) and write
+        them to ``out/launch.json``. Ctrl-C/SIGTERM: the running runs save and stop, the
+        results say which were interrupted, and :class:`~snnkart.faults.Interrupted` (a
+        ``KeyboardInterrupt``) is raised after they are written."""
+        names = [s.name for s in specs]
+        if len(set(names)) != len(names):
+            raise UsageError("every run needs its own name (they are directory names)")
+        results: dict[str, RunResult] = {}
+        pending = []
+        for spec in specs:
+            run_dir = self.out / spec.name
+            if _done_steps(run_dir) >= spec.config.total_steps:
+                results[spec.name] = _result(spec, run_dir, "reused", 0.0, None)
+            else:
+                pending.append(spec)
+        running: dict[str, tuple[RunSpec, subprocess.Popen[bytes], float]] = {}
+        stopped = False
+        with reporter.progress("runs", len(specs)) as task:
+            for _ in results:
+                task.advance()
+            try:
+                with faults.caught():
+                    while pending or running:
+                        while pending and len(running) < self.jobs:
+                            spec = pending.pop(0)
+                            running[spec.name] = (spec, self._start(spec), time.perf_counter())
+                        self._reap(running, results, task)
+                        faults.check()
+                        time.sleep(0.1)
+            except KeyboardInterrupt:
+                stopped = True
+                self._stop(running)
+                self._reap(running, results, task, final=True)
+                for spec in pending:
+                    results[spec.name] = _result(
+                        spec, self.out / spec.name, "interrupted", 0.0, None
+                    )
+                raise
+            finally:
+                self._write([results[s.name] for s in specs if s.name in results], stopped)
+        return [results[s.name] for s in specs]
+
+    def _start(self, spec: RunSpec) -> subprocess.Popen[bytes]:
+        run_dir = self.out / spec.name
+        run_dir.mkdir(parents=True, exist_ok=True)
+        config = self.out / f".{spec.name}.config.toml"
+        config.write_text(spec.config.to_toml())
+        resume = ["--resume"] if (run_dir / "config.toml").is_file() else []
+        env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+        log = (run_dir / "launch.log").open("ab")
+        try:
+            return subprocess.Popen(
+                [sys.executable, "-m", "snnkart.cli", "train", "--config", str(config),
+                 "--out", str(run_dir), *resume],
+                stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True,
+            )  # fmt: skip
+        finally:
+            log.close()
+
+    def _reap(self, running: dict[str, Any], results: dict[str, RunResult], task: Any,
+              final: bool = False) -> None:  # fmt: skip
+        for name, (spec, proc, start) in list(running.items()):
+            code = proc.wait() if final else proc.poll()
+            if code is None:
+                continue
+            del running[name]
+            run_dir = self.out / name
+            status = {0: "done", 130: "interrupted", 143: "interrupted"}.get(code, "failed")
+            error = None if status != "failed" else f"exit {code}; see {run_dir / 'launch.log'}"
+            results[name] = _result(spec, run_dir, status, time.perf_counter() - start, error)
+            task.advance()
+
+    def _stop(self, running: dict[str, Any]) -> None:
+        """SIGINT to every running run (each saves at its next iteration boundary); SIGKILL
+        to a run still there after :data:`STOP_GRACE_S`."""
+        for _, proc, _ in running.values():
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGINT)
+        deadline = time.monotonic() + STOP_GRACE_S
+        for _, proc, _ in running.values():
+            try:
+                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()
+
+    def _write(self, results: list[RunResult], interrupted: bool) -> None:
+        from snnkart.io import write_json
+
+        write_json(self.out / "launch.json",
+                   {"interrupted": interrupted, "runs": [asdict(r) for r in results]})  # fmt: skip
