@@ -52,14 +52,14 @@ class RunResult:
     error: str | None = None
 
 
-def _done_steps(run_dir: Path) -> int:
+def done_steps(run_dir: Path) -> int:
     try:
         return int(json.loads((run_dir / "checkpoint.json").read_text())["global_step"])
     except (OSError, ValueError, KeyError):
         return 0
 
 
-def _result(
+def result_of(
     spec: RunSpec, run_dir: Path, status: str, seconds: float, error: str | None
 ) -> RunResult:
     meta: dict[str, Any] = {}
@@ -96,8 +96,8 @@ class LocalPool:
         pending = []
         for spec in specs:
             run_dir = self.out / spec.name
-            if _done_steps(run_dir) >= spec.config.total_steps:
-                results[spec.name] = _result(spec, run_dir, "reused", 0.0, None)
+            if done_steps(run_dir) >= spec.config.total_steps:
+                results[spec.name] = result_of(spec, run_dir, "reused", 0.0, None)
             else:
                 pending.append(spec)
         running: dict[str, tuple[RunSpec, subprocess.Popen[bytes], float]] = {}
@@ -119,7 +119,7 @@ class LocalPool:
                 self._stop(running)
                 self._reap(running, results, task, final=True)
                 for spec in pending:
-                    results[spec.name] = _result(
+                    results[spec.name] = result_of(
                         spec, self.out / spec.name, "interrupted", 0.0, None
                     )
                 raise
@@ -154,7 +154,7 @@ class LocalPool:
             run_dir = self.out / name
             status = {0: "done", 130: "interrupted", 143: "interrupted"}.get(code, "failed")
             error = None if status != "failed" else f"exit {code}; see {run_dir / 'launch.log'}"
-            results[name] = _result(spec, run_dir, status, time.perf_counter() - start, error)
+            results[name] = result_of(spec, run_dir, status, time.perf_counter() - start, error)
             task.advance()
 
     def _stop(self, running: dict[str, Any]) -> None:

@@ -14,6 +14,7 @@ import typer
 from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.energy import plot_app, report
 from snnkart.cli.guard import fail, guard, interrupted_exit
+from snnkart.cli.sweep import sweep
 from snnkart.errors import SnnkartError
 
 app = typer.Typer(
@@ -312,6 +313,7 @@ def deploy(
 
 
 app.command()(report)
+app.command()(sweep)
 app.add_typer(plot_app, name="plot")
 
 

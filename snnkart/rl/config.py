@@ -45,7 +45,7 @@ class PPOConfig(_Section):
 
     num_envs: int = Field(8, ge=1, description="parallel envs (gymnasium SyncVectorEnv)")
     num_steps: int = Field(256, ge=1, description="rollout steps per env per iteration")
-    learning_rate: float = Field(3e-4, gt=0.0)
+    learning_rate: float = Field(3e-4, ge=0.0, description="0 trains nothing (a control)")
     anneal_lr: bool = True
     gamma: float = Field(0.995, gt=0.0, le=1.0, description="0.995: a ~3 s horizon at 60 Hz")
     gae_lambda: float = Field(0.95, ge=0.0, le=1.0)

@@ -354,3 +354,22 @@ class Trainer:
 
 def _interrupted() -> bool:
     return faults.pending() is not None
+
+
+def train(
+    cfg: TrainConfig,
+    run_dir: Path,
+    on_iteration: Callable[[dict[str, Any]], None] | None = None,
+    threads: int | None = None,
+) -> dict[str, Any]:
+    """One run as a plain function (the launchers' unit of work): train ``cfg`` into
+    ``run_dir``, resuming the run already there, calling ``on_iteration`` with every
+    iteration's metrics record; return its progress counters and whether it was interrupted."""
+    if threads is not None:
+        torch.set_num_threads(threads)
+    trainer = Trainer(cfg, run_dir, resume=(Path(run_dir) / "config.toml").is_file())
+    try:
+        progress = trainer.train(on_iteration)
+    finally:
+        trainer.close()
+    return {**progress.state(), "interrupted": trainer.interrupted}

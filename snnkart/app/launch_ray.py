@@ -1,0 +1,169 @@
+"""The launcher on Ray Tune, and ``snnkart sweep``: the only module that imports ray and optuna
+(``pip install -e '.[ray]'``).
+
+- :func:`run_on_ray` runs the same list of :class:`~snnkart.app.launch.RunSpec` as the local
+  pool, as Tune trials of one CPU each, into ``out/<name>`` (resumable: a finished run is
+  reused, an interrupted one resumes from its checkpoint), and gathers the same records.
+- :func:`run_sweep` searches hyperparameters with Tune's Optuna searcher and ASHA early stopping
+  (reduction factor 2: at each rung the weaker half stops) on the mean episodic return per
+  training iteration; ``sweep.json`` lists every trial with
+  its settings, how many iterations it ran and whether ASHA stopped it early.
+
+Both start a local Ray instance (one CPU per core) and shut it down after, or join a cluster
+with ``address`` (``ray start --head`` on the head node, ``ray start --address HEAD:6379`` on
+the others, then ``snnkart sweep --address HEAD:6379``; every node needs snnkart installed and
+``out`` on a shared file system).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Iterator
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from snnkart.app.launch import RunResult, RunSpec, done_steps, result_of
+from snnkart.errors import UsageError
+from snnkart.io import write_json
+from snnkart.rl.config import TrainConfig, validate_config
+
+METRIC = "episodic_return"
+
+
+def _train_trial(config: dict[str, Any]) -> None:
+    """A Tune trial: one ``snnkart train`` run in this worker, reporting every iteration."""
+    from ray import tune
+
+    from snnkart.rl.config import _set_dotted
+    from snnkart.rl.ppo import train
+
+    data = dict(config["train"])
+    for key, value in config.get("search", {}).items():
+        _set_dotted(data, key, value)
+    cfg = validate_config(data, "sweep trial")
+    run_dir = Path(config["out"]) / (config.get("name") or tune.get_context().get_trial_name())
+    last = {"value": -math.inf}
+
+    def report(record: dict[str, Any]) -> None:
+        ret = record.get("charts/episodic_return")
+        if ret is not None:
+            last["value"] = float(ret)
+        tune.report({METRIC: last["value"], "global_step": record["global_step"],
+                     "finishes": record["charts/cumulative_finishes"]})  # fmt: skip
+
+    train(cfg, run_dir, report, threads=1)
+
+
+@contextlib.contextmanager
+def _ray(address: str | None, cpus: int | None) -> Iterator[None]:
+    """A local Ray instance for the duration (shut down after, also on Ctrl-C), or a cluster."""
+    import ray
+
+    ray.init(address=address, num_cpus=None if address else cpus, include_dashboard=False,
+             log_to_driver=False, configure_logging=False)  # fmt: skip
+    try:
+        yield
+    finally:
+        ray.shutdown()
+
+
+def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
+               cpus: int | None = None) -> list[RunResult]:  # fmt: skip
+    """The local pool's list as Tune trials (one CPU each); the same records in
+    ``out/launch.json``."""
+    from ray import tune
+
+    out = Path(out).resolve()
+    todo = [s for s in specs if done_steps(out / s.name) < s.config.total_steps]
+    if todo:
+        space = {"spec": tune.grid_search([
+            {"name": s.name, "train": s.config.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out)} for s in todo
+        ])}  # fmt: skip
+        with _ray(address, cpus):
+            tuner = tune.Tuner(
+                tune.with_resources(lambda c: _train_trial(c["spec"]), {"cpu": 1}),
+                param_space=space,
+                run_config=tune.RunConfig(storage_path=str(out / "ray"), name="launch", verbose=0),
+            )
+            tuner.fit()
+    results = [
+        result_of(
+            s, out / s.name, "reused" if s not in todo else _status(out / s.name, s), 0.0, None
+        )
+        for s in specs
+    ]
+    write_json(out / "launch.json", {"backend": "ray", "runs": [asdict(r) for r in results]})
+    return results
+
+
+def _status(run_dir: Path, spec: RunSpec) -> str:
+    return "done" if done_steps(run_dir) >= spec.config.total_steps else "failed"
+
+
+def parse_param(text: str) -> tuple[str, Any]:
+    """``KEY=uniform:LOW:HIGH``, ``KEY=loguniform:LOW:HIGH`` or ``KEY=choice:A,B,...``."""
+    from ray import tune
+
+    key, sep, dist = text.partition("=")
+    kind, _, args = dist.partition(":")
+    try:
+        if sep and kind in ("uniform", "loguniform"):
+            low, high = (float(x) for x in args.split(":"))
+            return key, (tune.uniform if kind == "uniform" else tune.loguniform)(low, high)
+        if sep and kind == "choice":
+            values = [float(x) if x.replace(".", "", 1).replace("e-", "").isdigit() else x
+                      for x in args.split(",")]  # fmt: skip
+            return key, tune.choice(values)
+    except ValueError:
+        pass
+    raise UsageError(
+        f"--param {text!r}: write KEY=uniform:LOW:HIGH, KEY=loguniform:LOW:HIGH or "
+        "KEY=choice:A,B (e.g. ppo.learning_rate=loguniform:1e-4:3e-3)"
+    )
+
+
+def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
+              points: list[dict[str, Any]] | None = None, grace: int = 1,
+              address: str | None = None, cpus: int | None = None) -> dict[str, Any]:  # fmt: skip
+    """Search ``params`` with Optuna, stop weak trials with ASHA; write ``out/sweep.json``."""
+    from ray import tune
+    from ray.tune.schedulers import ASHAScheduler
+    from ray.tune.search.optuna import OptunaSearch
+
+    if samples < 1 or grace < 1:
+        raise UsageError("--samples and --grace must be >= 1")
+    space = dict(parse_param(p) for p in params)
+    if not space:
+        raise UsageError("give at least one --param to search")
+    out = Path(out).resolve()
+    iterations = max(1, base.total_steps // base.batch_size)
+    with _ray(address, cpus):
+        tuner = tune.Tuner(
+            tune.with_resources(_train_trial, {"cpu": 1}),
+            param_space={"train": base.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out), "search": space},
+            tune_config=tune.TuneConfig(
+                metric=METRIC, mode="max", num_samples=samples,
+                search_alg=OptunaSearch(seed=base.seed, points_to_evaluate=[
+                    {f"search/{k}": v for k, v in p.items()} for p in points or []]),
+                scheduler=ASHAScheduler(time_attr="training_iteration", grace_period=grace,
+                                        max_t=iterations, reduction_factor=2),
+            ),
+            run_config=tune.RunConfig(storage_path=str(out / "ray"), name="sweep", verbose=0),
+        )  # fmt: skip
+        grid = tuner.fit()
+    trials = []
+    for r in (grid[i] for i in range(len(grid))):
+        ran = int(r.metrics.get("training_iteration", 0)) if r.metrics else 0
+        trials.append({
+            "settings": (r.config or {}).get("search"), "iterations": ran, "max_iterations": iterations,
+            "stopped_early": ran < iterations and r.error is None,
+            METRIC: (r.metrics or {}).get(METRIC), "error": None if r.error is None else str(r.error),
+        })  # fmt: skip
+    scored = [t for t in trials if isinstance(t[METRIC], float)]
+    best = max(scored, key=lambda t: float(t[METRIC]), default=None)  # type: ignore[arg-type]
+    record = {"metric": METRIC, "mode": "max", "grace_period": grace, "samples": samples,
+              "base": base.model_dump(mode="json", by_alias=True, exclude_none=True), "trials": trials, "best": best}  # fmt: skip
+    write_json(out / "sweep.json", record)
+    return record
