@@ -72,6 +72,8 @@ from snnkart.app.launch import LocalPool
 from snnkart.app.reporter import Silent
 sys.path.insert(0, {tests!r})
 from test_launch import _specs
+import signal
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a terminal's Ctrl-C, even under CI
 faults.install()
 try:
     LocalPool(Path({out!r}), jobs=2).run(_specs({iterations}), Silent())

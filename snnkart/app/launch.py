@@ -3,7 +3,8 @@
 Each run is one ``snnkart train`` process with one torch thread, as many at once as there are
 cores. The pool is resumable: a run whose checkpoint already covers its steps is not trained
 again, one that was interrupted is resumed from its checkpoint. Ctrl-C or SIGTERM reaches every
-running run (each saves a checkpoint at its next iteration boundary, as ``snnkart train`` does);
+running run (as SIGTERM: each saves a checkpoint at its next iteration boundary, as
+``snnkart train`` does);
 the pool waits for them to exit and leaves no worker process behind. Results are gathered from
 each run's checkpoint metadata into one record per run.
 """
@@ -158,11 +159,12 @@ class LocalPool:
             task.advance()
 
     def _stop(self, running: dict[str, Any]) -> None:
-        """SIGINT to every running run (each saves at its next iteration boundary); SIGKILL
-        to a run still there after :data:`STOP_GRACE_S`."""
+        """SIGTERM to every running run (``snnkart train`` takes it like Ctrl-C and saves at its
+        next iteration boundary, also when started with SIGINT ignored, as under ``nohup``);
+        SIGKILL to a run still there after :data:`STOP_GRACE_S`."""
         for _, proc, _ in running.values():
             with contextlib.suppress(ProcessLookupError):
-                os.killpg(proc.pid, signal.SIGINT)
+                os.killpg(proc.pid, signal.SIGTERM)
         deadline = time.monotonic() + STOP_GRACE_S
         for _, proc, _ in running.values():
             try:

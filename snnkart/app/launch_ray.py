@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import signal
+import time
 from collections.abc import Iterator
 from dataclasses import asdict
 from pathlib import Path
@@ -61,12 +64,41 @@ def _ray(address: str | None, cpus: int | None) -> Iterator[None]:
     """A local Ray instance for the duration (shut down after, also on Ctrl-C), or a cluster."""
     import ray
 
+    before = set(_ray_pids())
     ray.init(address=address, num_cpus=None if address else cpus, include_dashboard=False,
              log_to_driver=False, configure_logging=False)  # fmt: skip
     try:
         yield
     finally:
         ray.shutdown()
+        if address is None:
+            _reap_local_ray(before)
+
+
+def _ray_pids() -> list[int]:
+    """Processes of a local Ray instance (its GCS, raylet and workers), from /proc."""
+    pids = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            cmd = Path(f"/proc/{pid}/cmdline").read_bytes()
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            continue
+        if state != "Z" and (b"raylet" in cmd or b"gcs_server" in cmd or cmd.startswith(b"ray::")
+                             or b"default_worker.py" in cmd):  # fmt: skip
+            pids.append(int(pid))
+    return pids
+
+
+def _reap_local_ray(before: set[int], grace: float = 15.0) -> None:
+    """``ray.shutdown`` stops the local instance asynchronously: wait for the processes it
+    started to exit, and kill any still there after ``grace`` seconds, so none outlives us."""
+    deadline = time.monotonic() + grace
+    while (left := [p for p in _ray_pids() if p not in before]) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    for pid in left:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.kill(pid, signal.SIGKILL)
 
 
 def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
