@@ -6,8 +6,9 @@ For each env x policy x seed this trains with the default settings for ``--steps
 evaluation success rate. Targets (issue 3): first finish within 200,000 steps and at least
 80 % evaluation success by 300,000 steps, for 3 of 3 seeds, ANN and SNN, every env.
 
-Runs go two at a time (one torch thread each, 2 cores). Results are appended to the JSON
-file after every run, so an interrupted benchmark keeps what it measured.
+Runs go through the launcher's local process pool (``snnkart.app.launch.LocalPool``: one
+torch thread each, ``--jobs`` at a time; finished runs are reused and interrupted ones
+resumed), then each is evaluated; results are written to the JSON after every evaluation.
 
     python -m benchmarks.bench_learning [--envs grid gazebo steer] [--policies ann snn]
                                         [--seeds 1 2 3] [--steps 300000] [--jobs 2]
@@ -22,7 +23,6 @@ import json
 import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -32,47 +32,38 @@ ROOT = Path(__file__).resolve().parents[1]
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
 
 
-def one_run(
-    env: str, policy: str, seed: int, steps: int, runs: Path, sets: list[str], episodes: int = 20
-) -> dict[str, Any]:
-    run_dir = runs / f"{env}-{policy}-s{seed}"
-    # Resume an interrupted run only if the same code made it; set an older one aside.
+def _set_aside_foreign(run_dir: Path, commit: str) -> None:
+    """Resume an interrupted run only if the same code made it; set an older one aside."""
     marker = run_dir / "bench_commit"
-    commit = git_commit()
     if run_dir.exists() and (not marker.is_file() or marker.read_text().strip() != commit):
         old = marker.read_text().strip() if marker.is_file() else "unknown"
         run_dir.rename(run_dir.with_name(f"{run_dir.name}.{old}.{int(time.time())}"))
     run_dir.mkdir(parents=True, exist_ok=True)
     marker.write_text(commit + "\n")
-    start = time.perf_counter()
-    subprocess.run(
-        [*SNNKART, "train", "--env", env, "--policy", policy, "--track", "small_S",
-         "--seed", str(seed), "--steps", str(steps), "--out", str(run_dir)]
-        + [arg for kv in sets for arg in ("--set", kv)]
-        + (["--resume"] if (run_dir / "config.toml").exists() else []),
-        check=True, cwd=ROOT, capture_output=True, text=True,
-    )  # fmt: skip
-    train_seconds = time.perf_counter() - start
+
+
+def evaluate(result: Any, env: str, policy: str, seed: int, episodes: int) -> dict[str, Any]:
+    """Score a trained run on seeded episodes (``snnkart eval``) and make its record."""
+    run_dir = Path(result.run_dir)
     subprocess.run(
         [*SNNKART, "eval", str(run_dir), "--episodes", str(episodes), "--seed", "10000"],
         check=True, cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
     evaluation = json.loads((run_dir / "eval.json").read_text())["summary"]
-    meta = json.loads((run_dir / "checkpoint.json").read_text())
-    first = meta["first_finish_step"]
+    first = result.first_finish_step
     return {
         "env": env,
         "policy": policy,
         "seed": seed,
-        "steps": meta["global_step"],
-        "first_finish_step": None if first < 0 else first,
-        "training_finishes": meta["finishes"],
-        "training_episodes": meta["episodes"],
+        "steps": result.global_step,
+        "first_finish_step": first,
+        "training_finishes": result.finishes,
+        "training_episodes": result.episodes,
         "eval_success_rate": evaluation["success_rate"],
         "eval_mean_lap_time": evaluation["mean_lap_time"],
         "eval_crashes": evaluation["crashes"],
-        "train_seconds": train_seconds,
-        "first_finish_within_200k": first >= 0 and first <= 200_000,
+        "train_seconds": result.seconds,
+        "first_finish_within_200k": first is not None and first <= 200_000,
         "eval_success_at_least_80pct": evaluation["success_rate"] >= 0.8,
         "run_dir": str(run_dir),
     }
@@ -102,23 +93,32 @@ def main() -> None:
         "eval_episodes": args.eval_episodes,
         "runs": [],
     }
+    from snnkart.app.launch import LocalPool, RunSpec
+    from snnkart.app.reporter import Silent
+    from snnkart.rl.config import load_config
+
     jobs = [(e, p, s) for e in args.envs for p in args.policies for s in args.seeds]
-    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [
-            pool.submit(one_run, e, p, s, args.steps, args.runs, args.sets, args.eval_episodes)
-            for e, p, s in jobs
-        ]
-        for fut in futures:
-            r = fut.result()
-            results["runs"].append(r)
-            path.write_text(json.dumps(results, indent=2) + "\n")
-            first = r["first_finish_step"]
-            print(
-                f"{r['env']:6s} {r['policy']} seed {r['seed']}: first finish "
-                f"{'never' if first is None else f'{first:,}'}, eval success "
-                f"{r['eval_success_rate']:.0%}, {r['train_seconds']:.0f} s",
-                flush=True,
-            )
+    commit = git_commit()
+    specs = []
+    for e, p, seed in jobs:
+        _set_aside_foreign(args.runs / f"{e}-{p}-s{seed}", commit)
+        config = load_config(overrides={"env": e, "policy": p, "track": "small_S", "seed": seed,
+                                        "total_steps": args.steps}, sets=args.sets)  # fmt: skip
+        specs.append(RunSpec(f"{e}-{p}-s{seed}", config))
+    trained = LocalPool(args.runs, jobs=args.jobs).run(specs, Silent())
+    for (e, p, seed), result in zip(jobs, trained, strict=True):
+        if result.status not in ("done", "reused"):
+            raise SystemExit(f"{result.name}: {result.status} ({result.error})")
+        r = evaluate(result, e, p, seed, args.eval_episodes)
+        results["runs"].append(r)
+        path.write_text(json.dumps(results, indent=2) + "\n")
+        first = r["first_finish_step"]
+        print(
+            f"{r['env']:6s} {r['policy']} seed {r['seed']}: first finish "
+            f"{'never' if first is None else f'{first:,}'}, eval success "
+            f"{r['eval_success_rate']:.0%}, {r['train_seconds']:.0f} s",
+            flush=True,
+        )
     print("\nsummary (runs meeting the target / runs):")
     for e in args.envs:
         for p in args.policies:
