@@ -25,22 +25,18 @@ import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks.common import add_out_argument, machine_info, output_path
+from benchmarks.common import add_out_argument, machine_info, output_path, training_seconds
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def training_speed(run_dir: Path) -> dict[str, Any]:
     """Env steps per second of training, from the run's per-iteration metrics."""
-    path = run_dir / "metrics.jsonl"
-    if not path.is_file():
+    timed = training_seconds(run_dir)
+    if timed is None:
         return {"steps_per_s": None, "note": "no metrics.jsonl (a run copied in with --from-run)"}
-    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    seconds = sum(
-        (r["global_step"] - prev) / r["charts/SPS"]
-        for r, prev in zip(rows, [0] + [r["global_step"] for r in rows[:-1]], strict=True)
-    )
-    return {"steps_per_s": rows[-1]["global_step"] / seconds, "iterations": len(rows)}
+    meta = json.loads((run_dir / "checkpoint.json").read_text())
+    return {"steps_per_s": meta["global_step"] / timed[0], "iterations": timed[1]}
 
 
 def deploy_summary(path: Path) -> dict[str, Any]:

@@ -9,8 +9,10 @@ its counts per env step (spikes, synaptic operations and neuron updates per laye
 not computed here: ``snnkart report`` prices these counts with the hardware profiles, so a
 changed price needs no rerun.
 
-Runs go ``--jobs`` at a time (one torch thread each). Results are written after every run, and
-a run whose deploy.json exists is not trained again (resumable).
+Training runs on the launcher's local pool (``snnkart.app.launch.LocalPool``: ``--jobs`` at a
+time, one torch thread each, finished runs reused and interrupted ones resumed); each run is
+then exported and deployed. Results are written after every run, and a run whose deploy.json
+exists is neither trained nor deployed again.
 
     python -m benchmarks.bench_sparsity [--env grid] [--points default t4 ...] [--seeds 1 2 3]
                                         [--steps 300000] [--jobs 2] [--episodes 50] [--out FILE]
@@ -24,11 +26,16 @@ import os
 import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from benchmarks.common import add_out_argument, git_commit, machine_info, output_path
+from benchmarks.common import (
+    add_out_argument,
+    git_commit,
+    machine_info,
+    output_path,
+    training_seconds,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
@@ -57,28 +64,52 @@ def _snnkart(*args: str, cwd: Path = ROOT) -> None:
         raise RuntimeError(f"snnkart {' '.join(args)} failed:\n{result.stderr[-3000:]}")
 
 
-def one_run(
-    env: str, point: str, seed: int, steps: int, episodes: int, runs: Path
-) -> dict[str, Any]:
-    run_dir = runs / f"{env}-{point}-s{seed}"
+def _name(env: str, point: str, seed: int) -> str:
+    return f"{env}-{point}-s{seed}"
+
+
+def train_all(env: str, jobs: list[tuple[str, int]], steps: int, runs: Path, workers: int) -> None:
+    """Train every (point, seed) not yet deployed on the launcher's local pool (one torch
+    thread each, ``workers`` at a time; finished runs are reused, interrupted ones resumed)."""
+    from snnkart.app.launch import LocalPool, RunSpec
+    from snnkart.app.reporter import Silent
+    from snnkart.rl.config import load_config
+
+    specs = [
+        RunSpec(
+            _name(env, point, seed),
+            load_config(
+                overrides={
+                    "env": env,
+                    "policy": "snn",
+                    "track": "small_S",
+                    "seed": seed,
+                    "total_steps": steps,
+                },
+                sets=POINTS[point],
+            ),
+        )
+        for point, seed in jobs
+        if not (runs / _name(env, point, seed) / "deploy-fixed" / "deploy.json").is_file()
+    ]
+    for result in LocalPool(runs, jobs=workers).run(specs, Silent()):
+        if result.status not in ("done", "reused"):
+            raise SystemExit(f"{result.name}: {result.status} ({result.error})")
+
+
+def one_run(env: str, point: str, seed: int, episodes: int, runs: Path) -> dict[str, Any]:
+    """Export and deploy a trained run (unless deployed already); its record."""
+    run_dir = runs / _name(env, point, seed)
     deploy_dir = run_dir / "deploy-fixed"
     start = time.perf_counter()
     if not (deploy_dir / "deploy.json").is_file():
-        sets = [arg for kv in POINTS[point] for arg in ("--set", kv)]
-        resume = ["--resume"] if (run_dir / "checkpoint.json").is_file() else []
-        _snnkart("train", "--env", env, "--policy", "snn", "--track", "small_S",
-                 "--seed", str(seed), "--steps", str(steps), "--out", str(run_dir),
-                 *sets, *resume)  # fmt: skip
         _snnkart("export", "--nir", str(run_dir), "--out", str(run_dir / "policy.nir"))
         _snnkart("deploy", str(run_dir / "policy.nir"), "--backend", "nir-ref",
                  "--precision", "fixed", "--episodes", str(episodes), "--seed", "10000",
                  "--out", str(deploy_dir))  # fmt: skip
-    seconds = time.perf_counter() - start  # 0-ish when the run was reused
-    rows = [json.loads(x) for x in (run_dir / "metrics.jsonl").read_text().splitlines() if x]
-    steps = [r["global_step"] for r in rows]
-    train_seconds = sum(
-        (b - a) / r["charts/SPS"] for a, b, r in zip([0, *steps[:-1]], steps, rows, strict=True)
-    )
+    seconds = time.perf_counter() - start  # 0-ish when the run was deployed already
+    timed = training_seconds(run_dir)
+    train_seconds = timed[0] if timed else None
     record = json.loads((deploy_dir / "deploy.json").read_text())
     meta = json.loads((run_dir / "checkpoint.json").read_text())
     counts, summary = record["counts"], record["summary"]
@@ -215,21 +246,17 @@ def main() -> None:
         "runs": [],
     }
     jobs = [(p, s) for p in args.points for s in args.seeds]
-    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [
-            pool.submit(one_run, args.env, p, s, args.steps, args.episodes, args.runs)
-            for p, s in jobs
-        ]
-        for fut in futures:
-            r = fut.result()
-            results["runs"].append(r)
-            path.write_text(json.dumps(results, indent=2) + "\n")
-            print(
-                f"{r['point']:14s} seed {r['seed']}: success {r['success_rate']:.0%}, "
-                f"synops/step {sum(r['synops_per_step']):,.0f}, "
-                f"spikes/step {sum(r['spikes_per_step']):,.1f}, trained in {r['train_seconds']:.0f} s",
-                flush=True,
-            )
+    train_all(args.env, jobs, args.steps, args.runs, args.jobs)
+    for p, seed in jobs:
+        r = one_run(args.env, p, seed, args.episodes, args.runs)
+        results["runs"].append(r)
+        path.write_text(json.dumps(results, indent=2) + "\n")
+        print(
+            f"{r['point']:14s} seed {r['seed']}: success {r['success_rate']:.0%}, "
+            f"synops/step {sum(r['synops_per_step']):,.0f}, "
+            f"spikes/step {sum(r['spikes_per_step']):,.1f}, trained in {r['train_seconds']:.0f} s",
+            flush=True,
+        )
     results["summary"] = summarise(results)
     path.write_text(json.dumps(results, indent=2) + "\n")
     _print_summary(results["summary"])
