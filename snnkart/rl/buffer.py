@@ -6,6 +6,7 @@ reads them flattened to ``[steps * envs, ...]``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,6 +53,19 @@ class Batch:
     returns: torch.Tensor
     values: torch.Tensor
     spikes: torch.Tensor | None  # rate encoding: the input spike trains the actor saw
+
+    def shuffled(self, order: np.ndarray) -> Batch:
+        """The batch in ``order``: one gather per tensor and epoch, so that minibatches are
+        contiguous slices (:meth:`rows`) instead of a gather per tensor and minibatch."""
+        index = torch.from_numpy(order)
+        return self._map(lambda v: v[index])
+
+    def rows(self, start: int, stop: int) -> Batch:
+        return self._map(lambda v: v[start:stop])
+
+    def _map(self, f: Callable[[torch.Tensor], torch.Tensor]) -> Batch:
+        fields = {k: None if v is None else f(v) for k, v in self.__dict__.items()}
+        return Batch(**fields)  # type: ignore[arg-type]
 
 
 @dataclass

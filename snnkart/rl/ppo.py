@@ -249,10 +249,9 @@ class Trainer:
         clipfracs: list[float] = []
         first_ratio_dev = float("nan")
         for _epoch in range(p.update_epochs):
-            order = self.rng.permutation(batch)
+            epoch = b.shuffled(self.rng.permutation(batch))
             for start in range(0, mb_size * p.num_minibatches, mb_size):
-                mb = torch.from_numpy(order[start : start + mb_size])
-                losses, ratio, logratio = self._minibatch_loss(b, mb)
+                losses, ratio, logratio = self._minibatch_loss(epoch.rows(start, start + mb_size))
                 with torch.no_grad():
                     approx_kl = ((ratio - 1) - logratio).mean().item()
                     clipfracs.append(((ratio - 1.0).abs() > p.clip_coef).float().mean().item())
@@ -279,34 +278,26 @@ class Trainer:
         }
 
     def _minibatch_loss(
-        self, b: Batch, mb: torch.Tensor
+        self, mb: Batch
     ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
         """The PPO loss of one minibatch, its parts, and the probability ratios."""
         p = self.cfg.ppo
-        out = self.policy(
-            b.obs[mb],
-            b.raw[mb],
-            action=b.actions[mb],
-            input_spikes=b.spikes[mb] if b.spikes is not None else None,
-        )
-        logratio = out.log_prob - b.logprobs[mb]
+        out = self.policy(mb.obs, mb.raw, action=mb.actions, input_spikes=mb.spikes)
+        logratio = out.log_prob - mb.logprobs
         ratio = logratio.exp()
-        adv = b.advantages[mb]
+        adv = mb.advantages
         if p.norm_adv:
             adv = (adv - adv.mean()) / (adv.std() + 1e-8)
         pg_loss = torch.max(
             -adv * ratio, -adv * ratio.clamp(1 - p.clip_coef, 1 + p.clip_coef)
         ).mean()
         if p.clip_vloss:
-            v_clipped = b.values[mb] + (out.value - b.values[mb]).clamp(-p.clip_coef, p.clip_coef)
+            v_clipped = mb.values + (out.value - mb.values).clamp(-p.clip_coef, p.clip_coef)
             v_loss = (
-                0.5
-                * torch.max(
-                    (out.value - b.returns[mb]) ** 2, (v_clipped - b.returns[mb]) ** 2
-                ).mean()
+                0.5 * torch.max((out.value - mb.returns) ** 2, (v_clipped - mb.returns) ** 2).mean()
             )
         else:
-            v_loss = 0.5 * ((out.value - b.returns[mb]) ** 2).mean()
+            v_loss = 0.5 * ((out.value - mb.returns) ** 2).mean()
         entropy = out.entropy.mean()
         loss = pg_loss - self.ent_coef * entropy + p.vf_coef * v_loss
         if self.rate_reg > 0.0 and out.rates is not None:
