@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -64,3 +66,50 @@ def test_sweep_stops_weak_trials_early(tmp_path: Path) -> None:
     assert sum(t["stopped_early"] for t in trials) >= 1, trials
     assert all(t["iterations"] >= 1 for t in trials) and record["grace_period"] == 1
     assert not _ray_processes(), "Ray processes outlived the sweep"
+
+
+@pytest.mark.timeout(400)
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_of_a_sweep_saves_the_trials_and_leaves_no_ray_process(
+    tmp_path: Path, signum: int
+) -> None:
+    """Ctrl-C (SIGINT to the terminal's whole process group) or SIGTERM (to the command): the
+    sweep exits as interrupted, every trial's run directory holds a checkpoint of a whole
+    iteration it recorded, and no Ray process is left."""
+    assert not _ray_processes(), "a Ray instance is already running"
+    sets = [arg for kv in TINY for arg in ("--set", kv)]
+    sweep = subprocess.Popen(
+        [sys.executable, "-m", "snnkart.cli", "sweep", "--param",
+         "ppo.learning_rate=loguniform:1e-4:1e-3", "--samples", "2", "--grace", "1000",
+         "--steps", str(1000 * BATCH), "--cpus", "2", "--out", str(tmp_path), *sets],
+        cwd=ROOT, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 240
+    while len(_saved_steps(tmp_path)) < 2 or min(_saved_steps(tmp_path).values()) < 2 * BATCH:
+        assert time.monotonic() < deadline and sweep.poll() is None, "trials did not start"
+        time.sleep(0.5)
+    if signum == signal.SIGINT:
+        os.killpg(sweep.pid, signal.SIGINT)
+    else:
+        os.kill(sweep.pid, signal.SIGTERM)
+    _, stderr = sweep.communicate(timeout=150)
+    assert sweep.returncode == 128 + signum, stderr[-3000:]
+    assert "interrupted" in stderr
+    assert not _ray_processes(), "Ray processes outlived the sweep"
+    record = json.loads((tmp_path / "sweep.json").read_text())
+    assert record["interrupted"] is True and len(record["trials"]) == 2
+    for run_dir, step in _saved_steps(tmp_path).items():
+        lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+        assert step % BATCH == 0 and step >= 2 * BATCH
+        assert step >= (len(lines) - 1) * BATCH  # at most the iteration under way is lost
+
+
+def _saved_steps(out: Path) -> dict[Path, int]:
+    steps = {}
+    for meta in out.glob("*/checkpoint.json"):
+        try:
+            steps[meta.parent] = int(json.loads(meta.read_text())["global_step"])
+        except (OSError, ValueError, KeyError):
+            continue
+    return steps

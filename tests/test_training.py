@@ -276,6 +276,59 @@ def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
     assert (run_dir / "trajectories" / "iter_000004.npz").is_file()
 
 
+TIMING = {"charts/SPS", "charts/rollout_SPS", "charts/update_seconds"}
+
+
+class _StoppedFromOutside(Exception):
+    """What a launcher that ends a worker without a signal does (Ray Tune stopping a trial)."""
+
+
+def test_saving_every_iteration_changes_nothing_and_a_stopped_run_resumes(
+    tmp_path: Path,
+) -> None:
+    """A latest-only checkpoint after every iteration (Tune trials) leaves the run's results
+    as they were, and a run stopped from outside resumes from its last whole iteration."""
+    cfg = tiny_config("grid", "snn", total_steps=3 * BATCH, extra=["run.checkpoint_every=50"])
+
+    def run(run_dir: Path, every: bool, stop_at: int | None = None) -> None:
+        def stop(record: dict[str, Any]) -> None:
+            if record["iteration"] == stop_at:
+                raise _StoppedFromOutside
+
+        trainer = Trainer(cfg, run_dir, resume=(run_dir / "config.toml").is_file())
+        try:
+            trainer.train(stop, save_every_iteration=every)
+        finally:
+            trainer.close()
+
+    run(tmp_path / "plain", every=False)
+    run(tmp_path / "every", every=True)
+    strip = [{k: v for k, v in r.items() if k not in TIMING} for r in metrics(tmp_path / "plain")]
+    assert [{k: v for k, v in r.items() if k not in TIMING}
+            for r in metrics(tmp_path / "every")] == strip  # fmt: skip
+
+    stopped = tmp_path / "stopped"
+    with pytest.raises(_StoppedFromOutside):
+        run(stopped, every=True, stop_at=2)
+    meta = json.loads((stopped / "checkpoint.json").read_text())
+    assert meta["global_step"] == 2 * BATCH  # the iteration it had just finished
+    assert not list((stopped / "checkpoints").glob("*.pt"))  # latest only: no history copies
+    run(stopped, every=True)
+    assert [r["iteration"] for r in metrics(stopped)] == [1, 2, 3]
+    assert json.loads((stopped / "checkpoint.json").read_text())["global_step"] == 3 * BATCH
+    # without those saves a run stopped so has no checkpoint: it starts again, and the
+    # records it logged before (iterations 1-2) are dropped instead of repeated
+    unsaved = tmp_path / "unsaved"
+    with pytest.raises(_StoppedFromOutside):
+        run(unsaved, every=False, stop_at=2)
+    assert not (unsaved / "checkpoint.pt").exists()
+    with (unsaved / "metrics.jsonl").open("a") as f:
+        f.write('{"iteration": 3, "glo')  # a record cut short by a kill
+    run(unsaved, every=False)
+    assert [r["iteration"] for r in metrics(unsaved)] == [1, 2, 3]
+    assert metrics(unsaved)[0]["charts/episodic_return"] == strip[0]["charts/episodic_return"]
+
+
 def _foreground_sigint() -> None:
     """In the child: Ctrl-C as in a terminal's foreground job, even when the suite itself runs
     with SIGINT ignored (started in the background by a non-interactive shell)."""

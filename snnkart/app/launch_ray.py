@@ -29,6 +29,7 @@ from typing import Any
 
 from snnkart.app.launch import RunResult, RunSpec, done_steps, result_of
 from snnkart.errors import UsageError
+from snnkart.faults import Interrupted
 from snnkart.io import write_json
 from snnkart.rl.config import TrainConfig, validate_config
 
@@ -54,9 +55,47 @@ def _train_trial(config: dict[str, Any]) -> None:
         if ret is not None:
             last["value"] = float(ret)
         tune.report({METRIC: last["value"], "global_step": record["global_step"],
-                     "finishes": record["charts/cumulative_finishes"]})  # fmt: skip
+                     "finishes": record["charts/cumulative_finishes"],
+                     "run_dir": str(run_dir)})  # fmt: skip
 
-    train(cfg, run_dir, report, threads=1)
+    # Tune stops a trial (ASHA, Ctrl-C) while it waits in ``tune.report``, then ends the worker:
+    # the checkpoint written just before each report is the run's last whole iteration.
+    train(cfg, run_dir, report, threads=1, save_every_iteration=True)
+
+
+class _Stop:
+    """Ctrl-C or SIGTERM while Tune runs: ask Tune to stop gracefully (SIGUSR1, its own stop
+    signal: it stops the trials and writes its state) and remember which signal it was
+    (``signum``), so the caller can exit as interrupted. Tune's own SIGINT handler is kept
+    off (it would end the run as if it had finished, and does not catch SIGTERM);
+    :meth:`arm` again after ``ray.init``, which installs Ray's SIGTERM handler."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.previous = {s: signal.getsignal(s) for s in (*self.SIGNALS, signal.SIGUSR1)}
+
+    def _handler(self, signum: int, frame: object) -> None:
+        if self.signum is None:
+            self.signum = signum
+        if signal.getsignal(signal.SIGUSR1) in (signal.SIG_DFL, signal.SIG_IGN, None):
+            raise Interrupted(signum)  # Tune is not running yet (or any more)
+        os.kill(os.getpid(), signal.SIGUSR1)
+
+    def arm(self) -> None:
+        for s in self.SIGNALS:
+            if self.previous[s] is not signal.SIG_IGN:
+                signal.signal(s, self._handler)
+
+    def __enter__(self) -> _Stop:
+        os.environ["TUNE_DISABLE_SIGINT_HANDLER"] = "1"
+        self.arm()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for s, h in self.previous.items():
+            signal.signal(s, h if h is not None else signal.SIG_DFL)
 
 
 @contextlib.contextmanager
@@ -109,29 +148,41 @@ def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
 
     out = Path(out).resolve()
     todo = [s for s in specs if done_steps(out / s.name) < s.config.total_steps]
+    signum = None
     if todo:
         space = {"spec": tune.grid_search([
             {"name": s.name, "train": s.config.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out)} for s in todo
         ])}  # fmt: skip
-        with _ray(address, cpus):
+        with _Stop() as stop, _ray(address, cpus):
+            stop.arm()
             tuner = tune.Tuner(
                 tune.with_resources(lambda c: _train_trial(c["spec"]), {"cpu": 1}),
                 param_space=space,
                 run_config=tune.RunConfig(storage_path=str(out / "ray"), name="launch", verbose=0),
             )
             tuner.fit()
+        signum = stop.signum
     results = [
         result_of(
-            s, out / s.name, "reused" if s not in todo else _status(out / s.name, s), 0.0, None
+            s,
+            out / s.name,
+            "reused" if s not in todo else _status(out / s.name, s, signum is not None),
+            0.0,
+            None,
         )
         for s in specs
     ]
-    write_json(out / "launch.json", {"backend": "ray", "runs": [asdict(r) for r in results]})
+    write_json(out / "launch.json", {"backend": "ray", "interrupted": signum is not None,
+                                     "runs": [asdict(r) for r in results]})  # fmt: skip
+    if signum is not None:
+        raise Interrupted(signum)
     return results
 
 
-def _status(run_dir: Path, spec: RunSpec) -> str:
-    return "done" if done_steps(run_dir) >= spec.config.total_steps else "failed"
+def _status(run_dir: Path, spec: RunSpec, stopped: bool) -> str:
+    if done_steps(run_dir) >= spec.config.total_steps:
+        return "done"
+    return "interrupted" if stopped else "failed"
 
 
 def parse_param(text: str) -> tuple[str, Any]:
@@ -171,7 +222,8 @@ def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
         raise UsageError("give at least one --param to search")
     out = Path(out).resolve()
     iterations = max(1, base.total_steps // base.batch_size)
-    with _ray(address, cpus):
+    with _Stop() as stop, _ray(address, cpus):
+        stop.arm()
         tuner = tune.Tuner(
             tune.with_resources(_train_trial, {"cpu": 1}),
             param_space={"train": base.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out), "search": space},
@@ -185,17 +237,23 @@ def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
             run_config=tune.RunConfig(storage_path=str(out / "ray"), name="sweep", verbose=0),
         )  # fmt: skip
         grid = tuner.fit()
+    stopped = stop.signum is not None
     trials = []
     for r in (grid[i] for i in range(len(grid))):
         ran = int(r.metrics.get("training_iteration", 0)) if r.metrics else 0
         trials.append({
             "settings": (r.config or {}).get("search"), "iterations": ran, "max_iterations": iterations,
-            "stopped_early": ran < iterations and r.error is None,
+            # under Ctrl-C, Tune stops every running trial: whether ASHA had is then unknown
+            "stopped_early": None if stopped else ran < iterations and r.error is None,
             METRIC: (r.metrics or {}).get(METRIC), "error": None if r.error is None else str(r.error),
+            "run_dir": (r.metrics or {}).get("run_dir"),
         })  # fmt: skip
     scored = [t for t in trials if isinstance(t[METRIC], float)]
     best = max(scored, key=lambda t: float(t[METRIC]), default=None)  # type: ignore[arg-type]
     record = {"metric": METRIC, "mode": "max", "grace_period": grace, "samples": samples,
+              "interrupted": bool(stopped),
               "base": base.model_dump(mode="json", by_alias=True, exclude_none=True), "trials": trials, "best": best}  # fmt: skip
     write_json(out / "sweep.json", record)
+    if stop.signum is not None:
+        raise Interrupted(stop.signum)
     return record

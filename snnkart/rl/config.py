@@ -101,7 +101,9 @@ class SNNConfig(_Section):
     init_gain: float = Field(
         2.0, gt=0.0, description="scale of the spiking layers' initial weights"
     )
-    fused: bool = Field(True, description="use the fused LIF kernel in training (tested equal)")
+    fused: bool = Field(
+        True, description="use the fused LIF kernel in training and evaluation (tested equal)"
+    )
 
     @field_validator("hidden")
     @classmethod

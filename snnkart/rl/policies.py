@@ -242,7 +242,7 @@ class SNNPolicy(ActorCritic):
                 input_spikes = self.snn.encode(x)
         else:
             x = obs  # the normalised observation drives the first layer's current
-        out, rates, _ = self.snn(x, input_spikes, fused=self.cfg.fused and self.training)
+        out, rates, _ = self.snn(x, input_spikes, fused=self.cfg.fused)
         return out, input_spikes, rates
 
     @torch.no_grad()

@@ -114,8 +114,11 @@ class Trainer:
         self.rng = np.random.default_rng(cfg.seed)
         if checkpoint is not None:
             self._restore(*checkpoint)
+        if resume:
+            self.out.trim_metrics(self.progress.iteration)
         self.num_iterations = math.ceil(cfg.total_steps / cfg.batch_size)
         self.metrics_path = self.out.metrics_path
+        self.save_every_iteration = False
 
     # -- checkpoints -------------------------------------------------------------------------
 
@@ -126,17 +129,32 @@ class Trainer:
         self.obs_rms = RunningMeanStd.from_state(state["obs_rms"])
         self.progress = Progress(**{k: int(v) for k, v in state["progress"].items()})
         torch.set_rng_state(state["torch_rng"])
-        self.rng = np.random.default_rng(int(state["numpy_seed"]))
+        if "numpy_state" in state:  # a latest-only checkpoint (:meth:`save` with history off)
+            self.rng = np.random.default_rng()
+            self.rng.bit_generator.state = state["numpy_state"]
+        else:
+            self.rng = np.random.default_rng(int(state["numpy_seed"]))
 
-    def save(self) -> Path:
-        """Write ``checkpoint.pt`` (latest) and a copy under ``checkpoints/``."""
+    def save(self, history: bool = True) -> Path:
+        """Write ``checkpoint.pt`` (latest) and, with ``history``, a copy under
+        ``checkpoints/``.
+
+        A history checkpoint re-seeds the minibatch shuffling from a drawn seed (as every
+        checkpoint did before latest-only ones existed); a latest-only one stores the
+        generator's state instead, so writing it every iteration does not change what the
+        run computes."""
+        rng: dict[str, Any] = (
+            {"numpy_seed": int(self.rng.integers(2**62))}
+            if history
+            else {"numpy_state": self.rng.bit_generator.state}
+        )
         state = {
             "policy": self.policy.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "obs_rms": self.obs_rms.state(),
             "progress": self.progress.state(),
             "torch_rng": torch.get_rng_state(),
-            "numpy_seed": int(self.rng.integers(2**62)),
+            **rng,
         }
         meta = {
             "policy": self.cfg.policy,
@@ -146,15 +164,22 @@ class Trainer:
             "track": embed_track(self.track, self.cfg.track),
             **self.progress.state(),
         }
-        return self.out.save(state, meta, self.progress.iteration)
+        return self.out.save(state, meta, self.progress.iteration, history)
 
     # -- the loop ------------------------------------------------------------------------------
 
-    def train(self, on_iteration: Callable[[dict[str, Any]], None] | None = None) -> Progress:
+    def train(
+        self,
+        on_iteration: Callable[[dict[str, Any]], None] | None = None,
+        save_every_iteration: bool = False,
+    ) -> Progress:
         """Run until ``total_steps``; Ctrl-C or SIGTERM saves a checkpoint before returning
         (``self.interrupted_by`` is then the signal). The interrupt is taken between env
         steps; a rollout cut short is dropped, so the checkpoint holds the last whole
-        iteration."""
+        iteration. ``save_every_iteration`` also writes the latest checkpoint after every
+        iteration, before ``on_iteration`` (for a worker that may be stopped from outside
+        without a signal, as Ray Tune stops its trials)."""
+        self.save_every_iteration = save_every_iteration
         buf = self._allocate()
         self.out.open_tensorboard()
         self.rollout.reset(seed=self.cfg.seed + 7919 * self.progress.iteration)
@@ -239,6 +264,8 @@ class Trainer:
             or self.progress.iteration == self.num_iterations
         ):
             self.save()
+        elif self.save_every_iteration:
+            self.save(history=False)
         return record
 
     def update(self, b: Batch) -> dict[str, float]:
@@ -352,15 +379,17 @@ def train(
     run_dir: Path,
     on_iteration: Callable[[dict[str, Any]], None] | None = None,
     threads: int | None = None,
+    save_every_iteration: bool = False,
 ) -> dict[str, Any]:
     """One run as a plain function (the launchers' unit of work): train ``cfg`` into
     ``run_dir``, resuming the run already there, calling ``on_iteration`` with every
-    iteration's metrics record; return its progress counters and whether it was interrupted."""
+    iteration's metrics record; return its progress counters and whether it was interrupted.
+    ``save_every_iteration``: see :meth:`Trainer.train`."""
     if threads is not None:
         torch.set_num_threads(threads)
     trainer = Trainer(cfg, run_dir, resume=(Path(run_dir) / "config.toml").is_file())
     try:
-        progress = trainer.train(on_iteration)
+        progress = trainer.train(on_iteration, save_every_iteration)
     finally:
         trainer.close()
     return {**progress.state(), "interrupted": trainer.interrupted}

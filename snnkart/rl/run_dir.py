@@ -10,6 +10,7 @@ run_dir/trajectories/          kart positions per iteration (``run.trajectories`
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +30,14 @@ def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Tr
     return load_track(cfg.track)
 
 
+def _iteration_of(line: str) -> float:
+    """A metrics line's iteration; infinity for a line cut short by a kill."""
+    try:
+        return int(json.loads(line)["iteration"]) if line.endswith("\n") else math.inf
+    except (ValueError, KeyError, TypeError):
+        return math.inf
+
+
 class RunDir:
     """Writes everything a run keeps; every file is replaced atomically or appended to."""
 
@@ -42,15 +51,31 @@ class RunDir:
     def latest(self) -> Path:
         return self.path / "checkpoint.pt"
 
+    def trim_metrics(self, iteration: int) -> int:
+        """Drop the records of iterations after ``iteration`` (those a killed run logged
+        after its last checkpoint: resuming runs them again). Returns how many were dropped."""
+        if not self.metrics_path.is_file():
+            return 0
+        lines = self.metrics_path.read_text().splitlines(keepends=True)
+        keep = [ln for ln in lines if _iteration_of(ln) <= iteration]
+        if len(keep) != len(lines):
+            with atomic_path(self.metrics_path) as tmp:
+                tmp.write_text("".join(keep))
+        return len(lines) - len(keep)
+
     def write_config(self, cfg: TrainConfig) -> None:
         self.path.mkdir(parents=True, exist_ok=True)
         with atomic_path(self.path / "config.toml") as tmp:
             tmp.write_text(cfg.to_toml())
 
-    def save(self, state: dict[str, Any], meta: dict[str, Any], iteration: int) -> Path:
-        """Write ``checkpoint.pt`` (latest) and a copy under ``checkpoints/``."""
+    def save(
+        self, state: dict[str, Any], meta: dict[str, Any], iteration: int, history: bool = True
+    ) -> Path:
+        """Write ``checkpoint.pt`` (latest) and, with ``history``, a copy under
+        ``checkpoints/``."""
         save_checkpoint(self.latest, state, meta)
-        save_checkpoint(self.path / "checkpoints" / f"iter_{iteration:06d}.pt", state, meta)
+        if history:
+            save_checkpoint(self.path / "checkpoints" / f"iter_{iteration:06d}.pt", state, meta)
         return self.latest
 
     def open_tensorboard(self) -> None:
