@@ -83,7 +83,7 @@ def test_ctrl_c_of_a_sweep_saves_the_trials_and_leaves_no_ray_process(
          "ppo.learning_rate=loguniform:1e-4:1e-3", "--samples", "2", "--grace", "1000",
          "--steps", str(1000 * BATCH), "--cpus", "2", "--out", str(tmp_path), *sets],
         cwd=ROOT, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True,
+        text=True, preexec_fn=_foreground_sigint,
     )  # fmt: skip
     deadline = time.monotonic() + 240
     while len(_saved_steps(tmp_path)) < 2 or min(_saved_steps(tmp_path).values()) < 2 * BATCH:
@@ -103,6 +103,12 @@ def test_ctrl_c_of_a_sweep_saves_the_trials_and_leaves_no_ray_process(
         lines = (run_dir / "metrics.jsonl").read_text().splitlines()
         assert step % BATCH == 0 and step >= 2 * BATCH
         assert step >= (len(lines) - 1) * BATCH  # at most the iteration under way is lost
+
+
+def _foreground_sigint() -> None:
+    """In the child: Ctrl-C as in a terminal's foreground job, even when the suite itself runs
+    with SIGINT ignored (started in the background by a non-interactive shell, as CI may)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _saved_steps(out: Path) -> dict[Path, int]:
