@@ -1,4 +1,4 @@
-"""Learning, not just running: ANN and SNN on small_S in every env, several seeds.
+"""Learning, not just running: ANN and SNN on small_S (or other tracks) in every env, several seeds.
 
 For each env x policy x seed this trains with the default settings for ``--steps`` env steps
 (``snnkart train``), then evaluates the final deterministic policy on 20 seeded episodes
@@ -11,7 +11,8 @@ torch thread each, ``--jobs`` at a time; finished runs are reused and interrupte
 resumed), then each is evaluated; results are written to the JSON after every evaluation.
 
     python -m benchmarks.bench_learning [--envs grid gazebo steer] [--policies ann snn]
-                                        [--seeds 1 2 3] [--steps 300000] [--jobs 2]
+                                        [--seeds 1 2 3] [--tracks small_S FILE.toml ...]
+                                        [--steps 300000] [--jobs 2]
                                         [--eval-episodes 20] [--out FILE]
                                         [--set ppo.ent_coef=0.02 ...]
 """
@@ -42,7 +43,9 @@ def _set_aside_foreign(run_dir: Path, commit: str) -> None:
     marker.write_text(commit + "\n")
 
 
-def evaluate(result: Any, env: str, policy: str, seed: int, episodes: int) -> dict[str, Any]:
+def evaluate(
+    result: Any, env: str, policy: str, seed: int, episodes: int, track: str = "small_S"
+) -> dict[str, Any]:
     """Score a trained run on seeded episodes (``snnkart eval``) and make its record."""
     run_dir = Path(result.run_dir)
     subprocess.run(
@@ -53,6 +56,7 @@ def evaluate(result: Any, env: str, policy: str, seed: int, episodes: int) -> di
     first = result.first_finish_step
     return {
         "env": env,
+        "track": track,
         "policy": policy,
         "seed": seed,
         "steps": result.global_step,
@@ -69,11 +73,20 @@ def evaluate(result: Any, env: str, policy: str, seed: int, episodes: int) -> di
     }
 
 
+def _run_name(track: str, env: str, policy: str, seed: int) -> str:
+    prefix = "" if track == "small_S" else f"{Path(track).stem}-"
+    return f"{prefix}{env}-{policy}-s{seed}"
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--envs", nargs="+", default=["grid", "gazebo", "steer"])
     parser.add_argument("--policies", nargs="+", default=["ann", "snn"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
+    parser.add_argument(
+        "--tracks", nargs="+", default=["small_S"],
+        help="built-in track names or TOML files (e.g. benchmarks/tracks/*.toml)",
+    )  # fmt: skip
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--eval-episodes", type=int, default=20)
@@ -97,26 +110,28 @@ def main() -> None:
     from snnkart.app.reporter import Silent
     from snnkart.rl.config import load_config
 
-    jobs = [(e, p, s) for e in args.envs for p in args.policies for s in args.seeds]
+    jobs = [(t, e, p, s) for t in args.tracks for e in args.envs for p in args.policies
+            for s in args.seeds]  # fmt: skip
     commit = git_commit()
     specs = []
-    for e, p, seed in jobs:
-        _set_aside_foreign(args.runs / f"{e}-{p}-s{seed}", commit)
-        config = load_config(overrides={"env": e, "policy": p, "track": "small_S", "seed": seed,
+    for t, e, p, seed in jobs:
+        name = _run_name(t, e, p, seed)
+        _set_aside_foreign(args.runs / name, commit)
+        config = load_config(overrides={"env": e, "policy": p, "track": t, "seed": seed,
                                         "total_steps": args.steps}, sets=args.sets)  # fmt: skip
-        specs.append(RunSpec(f"{e}-{p}-s{seed}", config))
+        specs.append(RunSpec(name, config))
     start = time.perf_counter()
     trained = LocalPool(args.runs, jobs=args.jobs).run(specs, Silent())
     train_wall = time.perf_counter() - start
-    for (e, p, seed), result in zip(jobs, trained, strict=True):
+    for (t, e, p, seed), result in zip(jobs, trained, strict=True):
         if result.status not in ("done", "reused"):
             raise SystemExit(f"{result.name}: {result.status} ({result.error})")
-        r = evaluate(result, e, p, seed, args.eval_episodes)
+        r = evaluate(result, e, p, seed, args.eval_episodes, t)
         results["runs"].append(r)
         path.write_text(json.dumps(results, indent=2) + "\n")
         first = r["first_finish_step"]
         print(
-            f"{r['env']:6s} {r['policy']} seed {r['seed']}: first finish "
+            f"{Path(t).stem} {r['env']:6s} {r['policy']} seed {r['seed']}: first finish "
             f"{'never' if first is None else f'{first:,}'}, eval success "
             f"{r['eval_success_rate']:.0%}, {r['train_seconds']:.0f} s",
             flush=True,
@@ -139,12 +154,16 @@ def main() -> None:
         f"{w['eval_seconds'] / 60:.1f} evaluation; {w['runs_reused']} reused)"
     )
     print("\nsummary (runs meeting the target / runs):")
-    for e in args.envs:
-        for p in args.policies:
-            rs = [r for r in results["runs"] if r["env"] == e and r["policy"] == p]
-            ff = sum(r["first_finish_within_200k"] for r in rs)
-            ok = sum(r["eval_success_at_least_80pct"] for r in rs)
-            print(f"  {e:6s} {p}: first finish <= 200k {ff}/{len(rs)}, eval >= 80 % {ok}/{len(rs)}")
+    for t in args.tracks:
+        for e in args.envs:
+            for p in args.policies:
+                rs = [r for r in results["runs"]
+                      if r["track"] == t and r["env"] == e and r["policy"] == p]  # fmt: skip
+                ff = sum(r["first_finish_within_200k"] for r in rs)
+                ok = sum(r["eval_success_at_least_80pct"] for r in rs)
+                anyf = sum(r["first_finish_step"] is not None for r in rs)
+                print(f"  {Path(t).stem} {e:6s} {p}: first finish {anyf}/{len(rs)}, within 200k "
+                      f"{ff}/{len(rs)}, eval >= 80 % {ok}/{len(rs)}")  # fmt: skip
     print(f"results written to {path}")
 
 

@@ -236,7 +236,16 @@ def test_reward_term_names(env_class):
     env = env_class()
     env.reset(seed=0)
     *_, info = env.step(IDLE[env_class])
-    expected = {"progress", "heading", "checkpoint", "finish", "time", "wall", "stand_still"}
+    expected = {
+        "progress",
+        "heading",
+        "checkpoint",
+        "finish",
+        "time",
+        "wall",
+        "stand_still",
+        "stall",
+    }
     if env_class is SteerEnv:
         expected.add("steering")
     assert set(info["reward_terms"]) == expected
@@ -277,6 +286,39 @@ def test_standing_still_terminates(env_class):
     assert info["stood_still"]
     assert info["reward_terms"]["stand_still"] == -env.config.reward.stand_still
     assert_reward_adds_up(reward, info, "step 30")
+
+
+@pytest.mark.parametrize("env_class", ENV_CLASSES)
+def test_stalling_costs_per_step_after_the_grace(env_class):
+    """Once the kart has not come nearer the next checkpoint for stall_grace_steps, every
+    further step pays ``stall``; standing still is stalling, so idling pays from step 22 (the
+    first step sets the distance to beat)."""
+    config = {"max_episode_steps": 60, "reward": {"stall": 0.05, "stall_grace_steps": 20}}
+    env = env_class(track="small_S", config=config)
+    env.reset(seed=0)
+    paid = []
+    for _ in range(40):
+        _, reward, terminated, truncated, info = env.step(IDLE[env_class])
+        assert not (terminated or truncated)
+        paid.append(info["reward_terms"]["stall"])
+        assert_reward_adds_up(reward, info, "stall")
+    assert paid[:21] == [0.0] * 21 and paid[21:] == [-0.05] * 19
+    # off by default, and then left out of the env spec: runs made before it existed match
+    from snnkart.envs.spec import env_spec
+
+    assert env_class(track="small_S").config.reward.stall == 0.0
+    assert "stall" not in env_spec(env_class(track="small_S"))["env_config"]["reward"]
+    assert env_spec(env)["env_config"]["reward"]["stall"] == 0.05
+
+
+def test_stall_counts_steps_without_a_new_best_distance():
+    from snnkart.envs.reward import Stall
+
+    stall = Stall()
+    assert stall.update(0, 500.0) == 0  # a new checkpoint starts the count
+    assert [stall.update(0, d) for d in (499.5, 510.0, 498.0, 505.0)] == [1, 2, 0, 1]
+    assert stall.update(0, float("nan")) == 2  # undefined distance: no progress
+    assert stall.update(1, 800.0) == 0  # the next checkpoint
 
 
 @pytest.mark.parametrize("env_class", ENV_CLASSES)

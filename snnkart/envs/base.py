@@ -22,7 +22,7 @@ from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.geometry import nearest_point
 from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.observation import ObsField, observation_layout, observation_space
-from snnkart.envs.reward import StandStill, step_terms
+from snnkart.envs.reward import Stall, StandStill, step_terms
 from snnkart.envs.tracks import Track, load_track
 from snnkart.envs.world import build_world
 from snnkart.errors import EnvError
@@ -204,15 +204,11 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         crashed = self._touched_wall and not finished
         still_steps = self._stand_still.update(self._x, self._y)
         stood_still = not (finished or crashed) and still_steps >= rw.stand_still_steps
+        stalled = self._stall.update(self._next_cp, self._geo_d) > rw.stall_grace_steps
         terms = step_terms(
-            rw,
-            progress_px=progress_px,
-            turn=turn,
-            passed=self._passed_this_step,
-            finished=finished,
-            crashed=crashed,
-            stood_still=stood_still,
-        )
+            rw, progress_px=progress_px, turn=turn, passed=self._passed_this_step,
+            finished=finished, crashed=crashed, stood_still=stood_still, stalled=stalled,
+        )  # fmt: skip
         self._extra_reward_terms(terms)
         self._passed_this_step = 0
         terminated = finished or crashed or stood_still
@@ -307,6 +303,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._touched_wall = False
         self._steps = 0
         self._stand_still.restart(*self.track.spawn_position)
+        self._stall = Stall()
         self._checkpoint_times = []
         self._needs_reset = True
         self._last_action = None

@@ -56,6 +56,13 @@ class RewardConfig(_Frozen):
     stand_still_steps: int = Field(
         200, ge=1, description="steps standing still that end the episode"
     )
+    stall: float = Field(
+        0.0,
+        ge=0.0,
+        description="penalty per step while the kart has not come nearer the next checkpoint "
+        "(along the track) for more than stall_grace_steps",
+    )
+    stall_grace_steps: int = Field(60, ge=0, description="steps without progress before stall")
 
 
 class GridPhysics(_Frozen):

@@ -22,11 +22,13 @@ def step_terms(
     finished: bool,
     crashed: bool,
     stood_still: bool,
+    stalled: bool = False,
 ) -> dict[str, float]:
     """This step's reward terms. ``progress_px``: how much nearer the next checkpoint line the
     kart came along the track; ``turn``: the rise of the cosine between its heading and the way
-    there; ``passed``: checkpoints passed in order this step. Finishing pays no progress or
-    heading for the last step."""
+    there; ``passed``: checkpoints passed in order this step; ``stalled``: the kart has not come
+    nearer the next checkpoint for more than ``stall_grace_steps`` (:class:`Stall`). Finishing
+    pays no progress or heading for the last step."""
     return {
         "progress": 0.0 if finished else rw.progress * progress_px / PIXELS_PER_METRE,
         "heading": 0.0 if finished else rw.heading * turn,
@@ -35,6 +37,7 @@ def step_terms(
         "time": -rw.time,
         "wall": -rw.wall if crashed else 0.0,
         "stand_still": -rw.stand_still if stood_still else 0.0,
+        "stall": -rw.stall if stalled else 0.0,
     }
 
 
@@ -55,6 +58,28 @@ class StandStill:
         """Count this step at ``(x, y)``; return the steps spent standing still."""
         if math.hypot(x - self.anchor[0], y - self.anchor[1]) > self.radius:
             self.restart(x, y)
+        else:
+            self.steps += 1
+        return self.steps
+
+
+class Stall:
+    """Steps since the kart last came nearer the next checkpoint, along the track, than it had
+    been before (by more than 1 px). Wandering, hovering and standing still all count; a new
+    next checkpoint starts the count again."""
+
+    def __init__(self) -> None:
+        self.restart()
+
+    def restart(self) -> None:
+        self.checkpoint, self.best, self.steps = -1, math.inf, 0
+
+    def update(self, checkpoint: int, distance: float) -> int:
+        """Count this step at ``distance`` (px, NaN where undefined) from ``checkpoint``."""
+        if checkpoint != self.checkpoint:
+            self.checkpoint, self.best, self.steps = checkpoint, distance, 0
+        elif distance < self.best - 1.0:
+            self.best, self.steps = distance, 0
         else:
             self.steps += 1
         return self.steps

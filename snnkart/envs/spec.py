@@ -89,11 +89,21 @@ def env_spec(env: KartEnv) -> dict[str, Any]:
     }
 
 
+_ADDED_OFF = {"reward": ("stall", ("stall", "stall_grace_steps"))}
+"""Env config terms added after revision 3 began, by section: (the switch, the fields it
+governs). While the switch is off (0), they change nothing and are left out of the spec."""
+
+
 def _env_config(env: KartEnv) -> dict[str, Any]:
     data = env.config.model_dump(mode="json")
     for key in _ADDED_UNSET:
         if data.get(key) is None:
             data.pop(key, None)
+    for section, (switch, fields) in _ADDED_OFF.items():
+        values = data.get(section)
+        if isinstance(values, dict) and not values.get(switch):
+            for field in fields:
+                values.pop(field, None)
     return data
 
 
