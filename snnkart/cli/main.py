@@ -14,6 +14,7 @@ import typer
 from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.energy import plot_app, report
 from snnkart.cli.guard import fail, guard, interrupted_exit
+from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
 from snnkart.errors import SnnkartError
 
@@ -314,6 +315,7 @@ def deploy(
 
 app.command()(report)
 app.command()(sweep)
+app.command()(study)
 app.add_typer(plot_app, name="plot")
 
 

@@ -1,0 +1,312 @@
+"""``snnkart study``: the SNN-vs-ANN study the original is known for, seeds and all.
+
+A study config (TOML, :class:`StudyConfig`) names tracks, envs, policy kinds, seeds, a step cap
+and ``--set`` overrides for every run and per cell. Every run trains on the launcher (the local
+pool by default, Ray Tune with ``ray=True``), one torch thread each, and is then evaluated on
+seeded episodes: ANNs in torch, SNNs exported to NIR and run on the numpy reference in fixed
+point (what the chip computes). :func:`run_study` gathers ``study.json``; the report layer
+writes ``study.md`` and the plots.
+
+Resumable: a run directory carries the key of what made it (:func:`study_key`: its resolved
+config, the env revision, the track's geometry and the training code), so a finished run is
+reused when nothing that determines it changed, also across unrelated commits; a run whose
+key differs is set aside (renamed) and trained again.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from snnkart.app.launch import LocalPool, RunResult, RunSpec
+from snnkart.app.reporter import Reporter
+from snnkart.envs.spec import ENV_REVISION
+from snnkart.envs.tracks import load_track
+from snnkart.errors import UsageError
+from snnkart.io import write_json, write_text
+from snnkart.rl.config import TrainConfig, load_config
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+STUDY_SCHEMA = "snnkart/study-config/v1"
+RECORD_SCHEMA = "snnkart/study/v1"
+KEY_FILE = "study_key.txt"
+PACKAGE = Path(__file__).resolve().parents[1]
+
+
+class StudyConfig(BaseModel):
+    """What a study trains: every track x env x policy (a cell) for every seed."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    schema_: str = Field(STUDY_SCHEMA, alias="schema")
+    name: str = "study"
+    tracks: list[str] = Field(["small_S"], min_length=1, description="built-in names or files")
+    envs: list[str] = Field(["grid", "gazebo", "steer"], min_length=1)
+    policies: list[Literal["ann", "snn"]] = Field(["ann", "snn"], min_length=1)
+    seeds: list[int] = Field([1, 2, 3, 4, 5], min_length=1)
+    steps: int = Field(300_000, ge=1, description="env steps per run (the cap)")
+    finishes: int = Field(300, ge=1, description="report the step at this many finishes")
+    eval_episodes: int = Field(50, ge=1)
+    eval_seed: int = 10_000
+    sets: list[str] = Field(default_factory=list, description="KEY=VALUE for every run")
+    cells: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description='KEY=VALUE per cell: "env-policy" or "track/env-policy" -> settings',
+    )
+
+
+def load_study(path: Path) -> StudyConfig:
+    """The study config in ``path``; errors name the file and the field."""
+    try:
+        data = tomllib.loads(Path(path).read_text())
+    except OSError as exc:
+        raise UsageError(f"cannot read the study config {path}: {exc.strerror or exc}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise UsageError(f"{path}: not valid TOML: {exc}") from exc
+    try:
+        study = StudyConfig.model_validate(data)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"]) or "(top level)"
+        raise UsageError(f"{path}: {where}: {first['msg']}") from exc
+    if study.schema_ != STUDY_SCHEMA:
+        raise UsageError(f"{path}: schema {study.schema_!r}; this snnkart reads {STUDY_SCHEMA!r}")
+    return study
+
+
+@dataclass(frozen=True)
+class Run:
+    track: str
+    env: str
+    policy: str
+    seed: int
+    spec: RunSpec
+
+    @property
+    def cell(self) -> tuple[str, str, str]:
+        return (self.track, self.env, self.policy)
+
+
+def track_label(track: str) -> str:
+    return Path(track).stem if track.endswith(".toml") else track
+
+
+def plan(study: StudyConfig) -> list[Run]:
+    """Every run of the study, in a fixed order (cell by cell, seeds inside)."""
+    known = {f"{e}-{p}" for e in study.envs for p in study.policies}
+    known |= {f"{track_label(t)}/{c}" for t in study.tracks for c in list(known)}
+    for cell in study.cells:
+        if cell not in known:
+            raise UsageError(
+                f"cells: {cell!r} is not a cell of this study ({', '.join(sorted(known))})"
+            )
+    runs = []
+    for track in study.tracks:
+        for env in study.envs:
+            for policy in study.policies:
+                cell_sets = [*study.cells.get(f"{env}-{policy}", []),
+                             *study.cells.get(f"{track_label(track)}/{env}-{policy}", [])]  # fmt: skip
+                for seed in study.seeds:
+                    config = load_config(
+                        overrides={"env": env, "policy": policy, "track": track, "seed": seed,
+                                   "total_steps": study.steps},
+                        sets=["run.tensorboard=false", *study.sets, *cell_sets],
+                    )  # fmt: skip
+                    name = f"{track_label(track)}-{env}-{policy}-s{seed}"
+                    runs.append(Run(track, env, policy, seed, RunSpec(name, config)))
+    return runs
+
+
+def code_digest() -> str:
+    """The training code: every source file of :mod:`snnkart.rl` and :mod:`snnkart.envs`."""
+    h = hashlib.sha256()
+    for package in ("rl", "envs"):
+        for path in sorted((PACKAGE / package).glob("*.py")):
+            h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
+def study_key(config: TrainConfig, code: str) -> str:
+    """What determines a run: its resolved config, the env revision, the track's geometry
+    and the training code (not the commit)."""
+    parts = {
+        "config": config.model_dump(mode="json", by_alias=True),
+        "env_revision": ENV_REVISION,
+        "track": load_track(config.track).to_toml(),
+        "code": code,
+    }
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:20]
+
+
+def _set_aside_stale(runs_dir: Path, runs: list[Run]) -> int:
+    """Rename run directories made by other configs or code; mark the rest. Returns how many
+    were set aside."""
+    code = code_digest()
+    stale = 0
+    for run in runs:
+        run_dir = runs_dir / run.spec.name
+        key = study_key(run.spec.config, code)
+        marker = run_dir / KEY_FILE
+        if run_dir.exists() and (not marker.is_file() or marker.read_text().strip() != key):
+            old = marker.read_text().strip()[:8] if marker.is_file() else "unkeyed"
+            run_dir.rename(run_dir.with_name(f"{run_dir.name}.stale-{old}-{int(time.time())}"))
+            stale += 1
+        run_dir.mkdir(parents=True, exist_ok=True)
+        marker.write_text(key + "\n")
+    return stale
+
+
+def _eval_target(run: Run, runs_dir: Path) -> tuple[list[str], Path]:
+    """The ``snnkart eval`` arguments for a run, and the file holding its summary."""
+    run_dir = runs_dir / run.spec.name
+    if run.policy == "snn":
+        out = run_dir / "study-eval-nir-ref-fixed"
+        args = ["--backend", "nir-ref", "--precision", "fixed", "--out", str(out)]
+        return args, out / "deploy.json"
+    out = run_dir / "study-eval.json"
+    return ["--out", str(out)], out
+
+
+def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
+             reporter: Reporter) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """Each run's evaluation summary, evaluating (``jobs`` at a time) where none newer than
+    its checkpoint exists."""
+    todo = []
+    for run in runs:
+        args, summary = _eval_target(run, runs_dir)
+        checkpoint = runs_dir / run.spec.name / "checkpoint.pt"
+        if not summary.is_file() or summary.stat().st_mtime < checkpoint.stat().st_mtime:
+            todo.append((run, args))
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    running: list[tuple[Run, subprocess.Popen[bytes]]] = []
+    with reporter.progress("evaluations", len(todo)) as task:
+        while todo or running:
+            while todo and len(running) < jobs:
+                run, args = todo.pop(0)
+                cmd = [sys.executable, "-m", "snnkart.cli", "eval", str(runs_dir / run.spec.name),
+                       "--episodes", str(study.eval_episodes), "--seed", str(study.eval_seed), *args]  # fmt: skip
+                running.append((run, subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
+                                                      stderr=subprocess.PIPE)))  # fmt: skip
+            for item in list(running):
+                code = item[1].poll()
+                if code is None:
+                    continue
+                running.remove(item)
+                if code != 0:
+                    err = item[1].stderr.read().decode(errors="replace") if item[1].stderr else ""
+                    raise UsageError(f"evaluating {item[0].spec.name} failed: {err[-500:]}")
+                task.advance()
+            time.sleep(0.1)
+    return {run.spec.name: _summary(_eval_target(run, runs_dir)[1]) for run in runs}
+
+
+def _summary(path: Path) -> dict[str, Any]:
+    return dict(json.loads(path.read_text())["summary"])
+
+
+def curve(run_dir: Path) -> dict[str, list[Any]]:
+    """Per iteration: env steps, cumulative training finishes, mean episodic return."""
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()
+            if line.strip()]  # fmt: skip
+    return {
+        "steps": [r["global_step"] for r in rows],
+        "finishes": [r["charts/cumulative_finishes"] for r in rows],
+        "return": [r["charts/episodic_return"] for r in rows],
+        "seconds": [
+            (r["global_step"] - p) / r["charts/SPS"]
+            for r, p in zip(rows, [0] + [r["global_step"] for r in rows[:-1]], strict=True)
+        ],
+    }
+
+
+def steps_to(finishes: int, c: dict[str, list[Any]]) -> int | None:
+    """The env step (iteration resolution) at which cumulative finishes first reach
+    ``finishes``; None if they never did."""
+    return next((s for s, f in zip(c["steps"], c["finishes"], strict=True) if f >= finishes), None)
+
+
+def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
+               evaluation: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+    c = curve(runs_dir / run.spec.name)
+    return {
+        "name": run.spec.name, "track": run.track, "env": run.env, "policy": run.policy,
+        "seed": run.seed, "status": result.status, "steps": result.global_step,
+        "first_finish_step": result.first_finish_step,
+        "steps_to_finishes": steps_to(study.finishes, c),
+        "training_finishes": result.finishes, "training_episodes": result.episodes,
+        "train_seconds": sum(c["seconds"]),
+        "eval_backend": "nir-ref fixed" if run.policy == "snn" else "torch",
+        "eval_success_rate": evaluation["success_rate"],
+        "eval_mean_return": evaluation["mean_return"], "eval_crashes": evaluation["crashes"],
+        "eval_stood_still": evaluation.get("stood_still"), "curve": c,
+    }  # fmt: skip
+
+
+def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | None = None,
+              ray: bool = False) -> dict[str, Any]:  # fmt: skip
+    """Train, evaluate and summarise the study into ``out`` (``out/runs/<name>`` per run,
+    ``out/study.json``); returns the record."""
+    from snnkart.app.study_summary import summarise
+
+    out = Path(out)
+    runs_dir = out / "runs"
+    runs = plan(study)
+    stale = _set_aside_stale(runs_dir, runs)
+    start = time.perf_counter()
+    specs = [r.spec for r in runs]
+    if ray:
+        from snnkart.app.launch_ray import run_on_ray
+
+        results = run_on_ray(specs, runs_dir, cpus=jobs)
+    else:
+        results = LocalPool(runs_dir, jobs=jobs).run(specs, reporter)
+    failed = [r for r in results if r.status not in ("done", "reused")]
+    if failed:
+        raise UsageError(f"{len(failed)} runs did not finish, e.g. {failed[0].name}: "
+                         f"{failed[0].status} ({failed[0].error})")  # fmt: skip
+    train_wall = time.perf_counter() - start
+    evaluations = evaluate(runs, runs_dir, study, jobs or os.cpu_count() or 1, reporter)
+    records = [run_record(run, res, runs_dir, study, evaluations[run.spec.name])
+               for run, res in zip(runs, results, strict=True)]  # fmt: skip
+    record = {
+        "schema": RECORD_SCHEMA,
+        "study": study.model_dump(mode="json", by_alias=True),
+        "env_revision": ENV_REVISION,
+        "code": code_digest()[:20],
+        "wall_clock": {
+            "train_seconds": train_wall,
+            "eval_seconds": time.perf_counter() - start - train_wall,
+            "runs": len(runs),
+            "runs_reused": sum(r.status == "reused" for r in results),
+            "runs_set_aside": stale,
+        },
+        "env_steps": sum(r["steps"] for r in records),
+        "cells": summarise(records, study),
+        "runs": records,
+    }
+    write_json(out / "study.json", record)
+    write_documents(record, out)
+    return record
+
+
+def write_documents(record: dict[str, Any], out: Path) -> None:
+    """``study.md`` (the tables beside the original's) and ``plots/`` from a study record."""
+    from snnkart.app.study_summary import ORIGINAL
+    from snnkart.report.study import markdown, write_plots
+
+    write_text(out / "study.md", markdown(record, ORIGINAL))
+    (out / "plots").mkdir(parents=True, exist_ok=True)
+    write_plots(record, out / "plots")

@@ -1,0 +1,68 @@
+"""A study's numbers per cell: medians and spreads over seeds, and the SNN against the ANN.
+
+A run that never reached a mark (a first finish, N finishes) counts as later than every run
+that did: medians are taken with it as infinity and shown as ">cap" when they land there.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from typing import Any
+
+ORIGINAL = {
+    # kart-simulator's headline table (one run per cell, as quoted in issue 17):
+    # first finish and step at 300 finishes, ANN and SNN, and ANN steps / SNN steps to 300.
+    "grid": {"ann_first": 141_000, "snn_first": 175_000, "ann_300": 402_000, "snn_300": 406_000,
+             "snn_pct_of_ann": 99.0},
+    "gazebo": {"ann_first": 82_000, "snn_first": 22_000, "ann_300": 431_000, "snn_300": 507_000,
+               "snn_pct_of_ann": 85.0},
+    "steer": {"ann_first": 156_000, "snn_first": 441_000, "ann_300": 724_000, "snn_300": 957_000,
+              "snn_pct_of_ann": 75.7},
+}  # fmt: skip
+
+
+def spread(values: list[float | None]) -> dict[str, Any]:
+    """Median, min and max over seeds; None (never reached) counts as infinity."""
+    finite = [v for v in values if v is not None]
+    as_inf = [math.inf if v is None else float(v) for v in values]
+    median = statistics.median(as_inf) if as_inf else math.inf
+    return {
+        "median": None if math.isinf(median) else median,
+        "min": min(finite) if finite else None,
+        "max": None if len(finite) < len(values) else (max(finite) if finite else None),
+        "reached": len(finite),
+        "of": len(values),
+    }
+
+
+def summarise(records: list[dict[str, Any]], study: Any) -> list[dict[str, Any]]:
+    """One entry per cell (track, env, policy) and one comparison per (track, env)."""
+    cells: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for r in records:
+        cells.setdefault((r["track"], r["env"], r["policy"]), []).append(r)
+    out = []
+    for (track, env, policy), rs in cells.items():
+        out.append({
+            "track": track, "env": env, "policy": policy, "seeds": [r["seed"] for r in rs],
+            "first_finish_step": spread([r["first_finish_step"] for r in rs]),
+            "steps_to_finishes": spread([r["steps_to_finishes"] for r in rs]),
+            "eval_success_rate": spread([r["eval_success_rate"] for r in rs]),
+            "train_seconds": spread([r["train_seconds"] for r in rs]),
+            "env_steps": sum(r["steps"] for r in rs),
+        })  # fmt: skip
+    for entry in out:
+        if entry["policy"] == "snn":
+            ann = next((e for e in out if e["policy"] == "ann" and e["track"] == entry["track"]
+                        and e["env"] == entry["env"]), None)  # fmt: skip
+            entry["snn_pct_of_ann"] = pct_of_ann(ann, entry)
+    return out
+
+
+def pct_of_ann(ann: dict[str, Any] | None, snn: dict[str, Any]) -> float | None:
+    """ANN median steps to N finishes / SNN median steps to N finishes, in %; None when either
+    median did not get there."""
+    if ann is None:
+        return None
+    a, s = ann["steps_to_finishes"]["median"], snn["steps_to_finishes"]["median"]
+    return None if a is None or s is None else 100.0 * a / s

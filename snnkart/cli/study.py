@@ -1,0 +1,33 @@
+"""``snnkart study``: train every cell of a study for every seed, evaluate, and write the
+tables and plots (:mod:`snnkart.app.study`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from snnkart.cli.guard import guard
+
+
+def study(
+    config: Annotated[Path, typer.Argument(help="the study config (TOML; see the README)")],
+    out: Annotated[Path, typer.Option("--out", "-o")] = Path("runs/study"),
+    jobs: Annotated[int | None, typer.Option(help="runs at a time (default: one per core)")] = None,
+    ray: Annotated[bool, typer.Option(help="run the trainings as Ray Tune trials")] = False,
+) -> None:
+    """Train every track x env x policy cell for every seed (one torch thread per run,
+    resumable: finished runs with the same config and training code are reused), evaluate each
+    run, and write OUT/study.json, OUT/study.md and OUT/plots/."""
+    from snnkart.app.study import load_study, run_study
+    from snnkart.cli.console import ConsoleReporter
+
+    def run() -> dict:
+        return run_study(load_study(config), out, ConsoleReporter(), jobs, ray)
+
+    record = guard(run, "every run saved its checkpoint; run the same command to resume")
+    typer.echo((out / "study.md").read_text())
+    w = record["wall_clock"]
+    typer.echo(f"{w['runs']} runs ({w['runs_reused']} reused) in "
+               f"{(w['train_seconds'] + w['eval_seconds']) / 60:.1f} min; results in {out}")  # fmt: skip

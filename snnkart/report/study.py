@@ -1,0 +1,140 @@
+"""A study's document and figures: ``study.md`` beside the original's table, and the plots of
+cumulative finishes and returns against training steps (median line, min-max band per policy
+kind; PNG and SVG)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from snnkart.report.plots import _figure
+
+COLOURS = {"ann": "#1f77b4", "snn": "#d62728"}
+
+
+def _k(steps: float | None) -> str:
+    return ">cap" if steps is None else f"{steps / 1000:.0f}k"
+
+
+def _steps(s: dict[str, Any]) -> str:
+    if s["of"] == 1 or s["reached"] == 0:
+        return _k(s["median"])
+    return f"{_k(s['median'])} ({_k(s['min'])}–{_k(s['max'])})"
+
+
+def _pct(s: dict[str, Any]) -> str:
+    def p(v: float | None) -> str:
+        return "-" if v is None else f"{100 * v:.0f} %"
+
+    return f"{p(s['median'])} ({p(s['min'])}–{p(s['max'])})" if s["of"] > 1 else p(s["median"])
+
+
+def _vs(ours: float | None, theirs: float | None, lower_is_better: bool = True) -> str:
+    if theirs is None:
+        return ""
+    if ours is None:
+        return " ✗" if lower_is_better else ""
+    better = ours < theirs if lower_is_better else ours > theirs
+    return " ✓" if better else " ✗"
+
+
+def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> str:
+    study = record["study"]
+    n = study["finishes"]
+    lines = [f"# Study: {study['name']}", "",
+             f"{len(study['seeds'])} seeds per cell, at most {study['steps']:,} env steps per run. "
+             "Medians over seeds with (min–max); `>cap`: not reached within the cap. "
+             f"\"{n} finishes\": the step at which the run's cumulative finished training episodes "
+             f"reached {n}. Evaluation: {study['eval_episodes']} seeded episodes, ANNs in torch, "
+             "SNNs exported to NIR on the numpy reference in fixed point. ✓/✗: better/worse than "
+             "the original (one run per cell; shown for small_S at 300 finishes).", ""]  # fmt: skip
+    cells = record["cells"]
+    for track in study["tracks"]:
+        lines += [f"## {Path(track).stem}", "",
+                  f"| env | ANN first finish | SNN first finish | ANN {n} finishes | "
+                  f"SNN {n} finishes | SNN % of ANN | ANN eval | SNN eval |",
+                  "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+        for env in study["envs"]:
+            by = {c["policy"]: c for c in cells if c["track"] == track and c["env"] == env}
+            # the original's numbers: its track and its mark of 300 finishes only
+            comparable = Path(track).stem == "small_S" and n == 300
+            lines += _rows(env, by, original.get(env) if comparable else None)
+        lines.append("")
+    w = record["wall_clock"]
+    lines += [f"Training {w['train_seconds'] / 60:.1f} min and evaluation "
+              f"{w['eval_seconds'] / 60:.1f} min of wall-clock for {w['runs']} runs "
+              f"({w['runs_reused']} reused); {record['env_steps']:,} env steps in all. "
+              f"Env revision {record['env_revision']}, training code {record['code']}.", ""]  # fmt: skip
+    return "\n".join(lines)
+
+
+def _rows(env: str, by: dict[str, dict[str, Any]], orig: dict[str, float] | None) -> list[str]:
+    def cell(policy: str, key: str, orig_key: str) -> str:
+        c = by.get(policy)
+        if c is None:
+            return "-"
+        mark = _vs(c[key]["median"], orig[orig_key]) if orig else ""
+        return _steps(c[key]) + mark
+
+    snn = by.get("snn", {})
+    pct = snn.get("snn_pct_of_ann")
+    pct_text = "-" if pct is None else f"{pct:.1f} %"
+    if orig and pct is not None:
+        pct_text += _vs(pct, orig["snn_pct_of_ann"], lower_is_better=False)
+    row = [env, cell("ann", "first_finish_step", "ann_first"),
+           cell("snn", "first_finish_step", "snn_first"),
+           cell("ann", "steps_to_finishes", "ann_300"), cell("snn", "steps_to_finishes", "snn_300"),
+           pct_text, _pct(by["ann"]["eval_success_rate"]) if "ann" in by else "-",
+           _pct(by["snn"]["eval_success_rate"]) if "snn" in by else "-"]  # fmt: skip
+    lines = ["| " + " | ".join(row) + " |"]
+    if orig:
+        lines.append(f"| *original* | {_k(orig['ann_first'])} | {_k(orig['snn_first'])} | "
+                     f"{_k(orig['ann_300'])} | {_k(orig['snn_300'])} | "
+                     f"{orig['snn_pct_of_ann']:.1f} % | | |")  # fmt: skip
+    return lines
+
+
+def _band(ax: Any, runs: list[dict[str, Any]], key: str, colour: str, label: str) -> None:
+    """Median line and min-max band over seeds, on the shortest run's steps."""
+    n = min(len(r["curve"]["steps"]) for r in runs)
+    steps = np.asarray(runs[0]["curve"]["steps"][:n], dtype=float)
+    ys = np.array([[np.nan if v is None else v for v in r["curve"][key][:n]] for r in runs],
+                  dtype=float)  # fmt: skip
+    ax.plot(steps, np.nanmedian(ys, axis=0), color=colour, label=f"{label} (median of {len(runs)})")
+    ax.fill_between(steps, np.nanmin(ys, axis=0), np.nanmax(ys, axis=0), color=colour, alpha=0.2)
+
+
+def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
+    """Per track: cumulative finishes and mean episodic return against steps, one panel per
+    env; PNG and SVG. Returns the files written."""
+    import matplotlib.pyplot as plt
+
+    study, runs, written = record["study"], record["runs"], []
+    for track in study["tracks"]:
+        for key, ylabel in (("finishes", "cumulative finished episodes"),
+                            ("return", "mean episodic return")):  # fmt: skip
+            fig, axes = _figure(4.2 * len(study["envs"]), 3.4, ncols=len(study["envs"]))
+            for ax, env in zip(axes[0], study["envs"], strict=True):
+                for policy in study["policies"]:
+                    rs = [
+                        r
+                        for r in runs
+                        if (r["track"], r["env"], r["policy"]) == (track, env, policy)
+                    ]
+                    if rs:
+                        _band(ax, rs, key, COLOURS[policy], policy.upper())
+                if key == "finishes":
+                    ax.axhline(study["finishes"], color="grey", lw=0.8, ls=":")
+                ax.set_title(f"{env} / {Path(track).stem}")
+                ax.set_xlabel("training env steps")
+                ax.set_ylabel(ylabel)
+                ax.legend(loc="upper left", fontsize=8)
+            fig.tight_layout()
+            for suffix in ("png", "svg"):
+                path = out / f"{Path(track).stem}-{key}.{suffix}"
+                fig.savefig(path, format=suffix)
+                written.append(path)
+            plt.close(fig)
+    return written

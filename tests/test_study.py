@@ -1,0 +1,142 @@
+"""``snnkart study``: every cell for every seed on the local pool, evaluated (ANN in torch, SNN
+on the numpy reference in fixed point), summarised against hand computations, reused when
+nothing that determines a run changed and retrained when something did."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import matplotlib.image
+import pytest
+
+from snnkart.app.study import load_study, plan, steps_to
+from snnkart.app.study_summary import pct_of_ann, spread, summarise
+from snnkart.errors import UsageError
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ["ppo.num_envs=2", "ppo.num_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2",
+        "snn.num_steps=2"]  # fmt: skip
+BATCH = 128
+
+
+def _write_study(path: Path, cells: str = "") -> Path:
+    path.write_text(f"""
+schema = "snnkart/study-config/v1"
+name = "tiny"
+envs = ["grid"]
+policies = ["ann", "snn"]
+seeds = [1, 2]
+steps = {3 * BATCH}
+finishes = 1
+eval_episodes = 2
+sets = {json.dumps(TINY)}
+{cells}
+""")
+    return path
+
+
+def _study(cfg: Path, out: Path) -> dict:
+    result = subprocess.run(
+        [sys.executable, "-m", "snnkart.cli", "study", str(cfg), "--out", str(out), "--jobs", "2"],
+        cwd=ROOT, capture_output=True, text=True, timeout=400,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "| env | ANN first finish" in result.stdout
+    return json.loads((out / "study.json").read_text())
+
+
+@pytest.mark.timeout(600)
+def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
+    out = tmp_path / "study"
+    record = _study(_write_study(tmp_path / "study.toml"), out)
+    runs = record["runs"]
+    assert [r["name"] for r in runs] == [
+        "small_S-grid-ann-s1", "small_S-grid-ann-s2", "small_S-grid-snn-s1", "small_S-grid-snn-s2"]  # fmt: skip
+    for r in runs:
+        run_dir = out / "runs" / r["name"]
+        rows = [json.loads(x) for x in (run_dir / "metrics.jsonl").read_text().splitlines()]
+        assert r["steps"] == 3 * BATCH and [x["global_step"] for x in rows] == [128, 256, 384]
+        reached = [x["global_step"] for x in rows if x["charts/cumulative_finishes"] >= 1]
+        assert r["steps_to_finishes"] == (reached[0] if reached else None)
+        if r["policy"] == "snn":  # the chip's arithmetic, not torch
+            evaluation = json.loads((run_dir / "study-eval-nir-ref-fixed/deploy.json").read_text())
+            assert evaluation["backend"] == "nir-ref" and evaluation["precision"] == "fixed"
+        else:
+            evaluation = json.loads((run_dir / "study-eval.json").read_text())
+        assert evaluation["summary"]["episodes"] == 2
+        assert r["eval_success_rate"] == evaluation["summary"]["success_rate"]
+    cells = {(c["env"], c["policy"]): c for c in record["cells"]}
+    assert cells[("grid", "ann")]["env_steps"] == 2 * 3 * BATCH
+    assert "snn_pct_of_ann" in cells[("grid", "snn")]
+    text = (out / "study.md").read_text()
+    assert "| grid |" in text and "*original*" not in text  # its numbers are for 300 finishes
+    for key in ("finishes", "return"):
+        image = matplotlib.image.imread(out / "plots" / f"small_S-{key}.png")
+        assert image.shape[0] > 200 and image.std() > 0.01  # drawn, not blank
+        assert (out / "plots" / f"small_S-{key}.svg").read_text().lstrip().startswith("<?xml")
+    assert record["wall_clock"]["runs_reused"] == 0
+
+    # run again: everything is reused, nothing evaluated again
+    stamp = (out / "runs/small_S-grid-ann-s1/study-eval.json").stat().st_mtime
+    again = _study(_write_study(tmp_path / "study.toml"), out)
+    assert again["wall_clock"]["runs_reused"] == 4 and again["wall_clock"]["runs_set_aside"] == 0
+    assert (out / "runs/small_S-grid-ann-s1/study-eval.json").stat().st_mtime == stamp
+    assert [r["eval_success_rate"] for r in again["runs"]] == [r["eval_success_rate"] for r in runs]
+
+    # a changed setting for one cell retrains that cell's runs only; the old ones are kept aside
+    changed = _study(_write_study(tmp_path / "study.toml", 'cells = {"grid-snn" = ["snn.beta=0.8"]}'), out)  # fmt: skip
+    assert (
+        changed["wall_clock"]["runs_reused"] == 2 and changed["wall_clock"]["runs_set_aside"] == 2
+    )
+    assert len(list((out / "runs").glob("small_S-grid-snn-s1.stale-*"))) == 1
+    cfg = (out / "runs/small_S-grid-snn-s1/config.toml").read_text()
+    assert "beta = 0.8" in cfg
+
+
+def test_spreads_and_the_snn_against_the_ann_by_hand() -> None:
+    assert spread([100, None, 300]) == {
+        "median": 300.0,
+        "min": 100,
+        "max": None,
+        "reached": 2,
+        "of": 3,
+    }
+    assert spread([None, None, 300])["median"] is None  # the median run never got there
+    assert spread([4, 1, 3, 2])["median"] == 2.5
+    ann = {"steps_to_finishes": spread([400_000, 420_000, 380_000])}
+    snn = {"steps_to_finishes": spread([500_000, 400_000, None])}
+    assert pct_of_ann(ann, snn) == pytest.approx(100 * 400_000 / 500_000)
+    assert pct_of_ann(ann, {"steps_to_finishes": spread([None, None, 1])}) is None
+    records = [
+        {"track": "t", "env": "grid", "policy": p, "seed": s, "first_finish_step": ff,
+         "steps_to_finishes": st, "eval_success_rate": ev, "train_seconds": 1.0, "steps": 10}
+        for p, s, ff, st, ev in [("ann", 1, 10, 100, 1.0), ("ann", 2, 20, 200, 0.5),
+                                 ("snn", 1, 30, 400, 0.9), ("snn", 2, None, None, 0.0)]
+    ]  # fmt: skip
+    cells = {c["policy"]: c for c in summarise(records, None)}
+    assert cells["ann"]["steps_to_finishes"]["median"] == 150.0
+    assert cells["snn"]["steps_to_finishes"]["median"] is None  # (400 + inf) / 2
+    assert cells["snn"]["snn_pct_of_ann"] is None
+    assert cells["snn"]["eval_success_rate"]["median"] == pytest.approx(0.45)
+    assert steps_to(3, {"steps": [10, 20, 30], "finishes": [0, 3, 5]}) == 20
+    assert steps_to(9, {"steps": [10, 20, 30], "finishes": [0, 3, 5]}) is None
+    assert not math.isnan(cells["ann"]["train_seconds"]["median"])
+
+
+def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text('schema = "snnkart/study-config/v1"\nseeds = []\n')
+    with pytest.raises(UsageError, match=r"bad.toml: seeds"):
+        load_study(bad)
+    bad.write_text('schema = "snnkart/study-config/v1"\nepisodes = 3\n')
+    with pytest.raises(UsageError, match=r"bad.toml: episodes: Extra inputs"):
+        load_study(bad)
+    bad.write_text('schema = "snnkart/study-config/v1"\ncells = {"grid-lstm" = []}\n')
+    with pytest.raises(UsageError, match=r"'grid-lstm' is not a cell"):
+        plan(load_study(bad))
+    with pytest.raises(UsageError, match="cannot read the study config"):
+        load_study(tmp_path / "missing.toml")
