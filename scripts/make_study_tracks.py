@@ -21,6 +21,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "tracks"
 PX = 100.0  # pixels per metre, as the built-in tracks
+WORLD_PX = 1000.0  # the renderer shows 0..1000 px on each axis (snnkart.envs.render)
 MARGIN_M = 1.0  # canvas margin around the walls
 BEVEL_COS = math.cos(math.radians(100))  # turns sharper than 100 degrees are bevelled outside
 SECONDS_PER_METRE = 3.5  # time limit per metre of centreline (small_S: 30 s for about 8 m)
@@ -48,7 +49,7 @@ DESIGNS = [
         "zigzag",
         "sharp corners: a 60-degree right, a 120-degree left and a 60-degree right turn, "
         "1.0 m corridors",
-        [(0, 0), (3, 0), (4.5, 2.6), (6.0, 0.0), (9.0, 0.0)],
+        [(0, 0), (2.2, 0), (3.6, 2.4), (5.0, 0.0), (7.2, 0.0)],
         1.0,
     ),
     Design(
@@ -60,7 +61,7 @@ DESIGNS = [
     Design(
         "bends",
         "gentle 45-degree bends turning right through 180 degrees, 1.3 m corridors",
-        [(0, 0), (4, 0), (6.8, 2.8), (6.8, 6.8), (4.0, 9.6), (0.0, 9.6)],
+        [(0, 0), (3, 0), (5.1, 2.1), (5.1, 5.1), (3.0, 7.2), (0.0, 7.2)],
         1.3,
     ),
 ]
@@ -132,6 +133,8 @@ def track_toml(design: Design) -> str:
 
     def px(p: np.ndarray) -> str:
         x, y = (p + shift) * PX
+        if max(x, y) > WORLD_PX:
+            raise SystemExit(f"{design.name}: ({x:.0f}, {y:.0f}) px is off screen; shrink it")
         return f"[{round(x)}, {round(y)}]"
 
     heading = math.degrees(math.atan2(start_dir[1], start_dir[0]))

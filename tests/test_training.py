@@ -611,6 +611,39 @@ def test_replay_writes_gif_and_mp4(
     assert b"ftyp" in mp4.read_bytes()[:64]
 
 
+def test_replay_compare_races_the_trained_policies(
+    tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
+) -> None:
+    """``replay --compare``: each run's deterministic episode on the first run's track, drawn
+    together in the legend's colours; each outcome is what the policy does on its own."""
+    import imageio.v2 as iio
+
+    from snnkart.app.replay import run_compare
+    from snnkart.app.reporter import Silent
+    from snnkart.eval.episodes import run_episodes
+    from snnkart.eval.replay import RACE_COLOURS
+
+    dirs = [trained["ann"][0], trained["snn"][0]]
+    gif = tmp_path / "cmp.gif"
+    outcomes = run_compare(dirs, gif, 10_000, None, 4, Silent())
+    for run_dir, got in zip(dirs, outcomes, strict=True):
+        run = load_run(run_dir)
+        (alone,) = run_episodes(run.config.make_env(track=run.track),
+                                TorchPredictor(run, seed=10_000), 1, 10_000)  # fmt: skip
+        ended = ("finished" if alone.finished else "crashed" if alone.crashed else
+                 "stood still" if alone.stood_still else "time limit")  # fmt: skip
+        assert got["outcome"].startswith(ended), (got, alone)
+    last = np.asarray(list(iio.get_reader(gif))[-1])[..., :3].astype(int)
+    panel = last[:, last.shape[1] * 3 // 4 :]
+    for colour in RACE_COLOURS[:2]:  # the legend, in each kart's colour
+        assert (np.abs(panel - np.array(colour)).sum(axis=-1) < 40).sum() > 20, colour
+    runner = CliRunner()
+    result = runner.invoke(app, ["replay", *map(str, dirs), "--out", str(tmp_path / "x.gif")])
+    assert result.exit_code == 2 and "--compare" in result.output
+    result = runner.invoke(app, ["replay", "--compare", *map(str, dirs * 3), "--out", str(gif)])
+    assert result.exit_code == 2 and "1 to 4 runs" in result.output
+
+
 def test_replay_unknown_mode_fails_cleanly(
     tmp_path: Path, trained: dict[str, tuple[Path, Trainer]]
 ) -> None:

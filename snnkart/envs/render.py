@@ -17,7 +17,8 @@ from __future__ import annotations
 import math
 import os
 import sys
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -126,10 +127,11 @@ class Renderer:
         self,
         positions: np.ndarray,
         colours: list[Colour],
-        lines: list[tuple[str, str]],
+        lines: Sequence[tuple[Any, ...]],
     ) -> np.ndarray | None:
         """Draw the track with many karts (replay): ``positions`` ``[k, 2]`` px, one colour each,
-        and ``lines`` of (label, value) in the side panel. Returns the frame as :meth:`draw`."""
+        and ``lines`` of (label, value[, colour]) in the side panel (a legend names colours
+        in their own colour). Returns the frame as :meth:`draw`."""
         frame = self._frame
         frame.blit(self._static, (0, 0))
         width = max(1, round(2 * self.scale))
@@ -140,8 +142,8 @@ class Renderer:
         for (x, y), colour in zip(positions, colours, strict=True):
             pygame.draw.circle(frame, colour, self._screen((x, y)), self._kart_radius, width)
         y = self._panel_top
-        for label, value in lines:
-            y = self._row(frame, y, label, value, TEXT)
+        for line in lines:  # (label, value) or (label, value, colour)
+            y = self._row(frame, y, line[0], line[1], line[2] if len(line) > 2 else TEXT)
         return self._present(frame)
 
     def quit_requested(self) -> bool:
