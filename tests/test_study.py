@@ -140,3 +140,11 @@ def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:
         plan(load_study(bad))
     with pytest.raises(UsageError, match="cannot read the study config"):
         load_study(tmp_path / "missing.toml")
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "studies").glob("*.toml")), ids=lambda p: p.stem)
+def test_the_committed_studies_plan(path: Path) -> None:
+    runs = plan(load_study(path))
+    assert runs and len({r.spec.name for r in runs}) == len(runs)
+    for run in runs:
+        assert (ROOT / run.track).is_file() or run.track in ("small_S", "big_S")
