@@ -11,7 +11,7 @@ import torch
 from snntorch import surrogate
 
 from snnkart.rl.config import SNNConfig
-from snnkart.rl.lif import fused_lif_layer
+from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
 from snnkart.rl.policies import SpikingActor
 
 RTOL = 1e-5
@@ -96,6 +96,57 @@ def test_fused_lif_matches_snntorch(seed: int, shape: tuple[int, int, int]) -> N
         assert lif.threshold.grad.abs().item() > 0.0, case
 
 
+ALPHAS = [0.0, 0.6, 0.9]
+
+
+def _synaptic(alpha: float, beta: float, threshold: float, slope: float) -> snn.Synaptic:
+    return snn.Synaptic(
+        alpha=torch.tensor(alpha), beta=torch.tensor(beta), threshold=torch.tensor(threshold),
+        spike_grad=surrogate.fast_sigmoid(slope=slope), reset_mechanism="zero",
+        reset_delay=False, learn_alpha=True, learn_beta=True, learn_threshold=True,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("shape", SHAPES)
+def test_fused_cuba_lif_matches_snntorch_synaptic(seed: int, shape: tuple[int, int, int]) -> None:
+    """Spikes identical, gradients of input, alpha, beta and threshold equal to float32
+    rounding, against snntorch's ``Synaptic`` stepped T times from I = U = 0."""
+    for alpha, beta, threshold, slope in itertools.product(ALPHAS, BETAS, THRESHOLDS, SLOPES[:1]):
+        g = torch.Generator().manual_seed(seed * 1000 + hash(shape) % 997)
+        x = torch.randn(shape, generator=g) * 0.8 + 0.3 * (1 - alpha)
+        upstream = torch.randn(shape, generator=g)
+        lif = _synaptic(alpha, beta, threshold, slope)
+        x_ref = x.clone().requires_grad_(True)
+        syn, mem = torch.zeros(shape[1:]), torch.zeros(shape[1:])
+        spikes = []
+        for t in range(shape[0]):
+            spk, syn, mem = lif(x_ref[t], syn, mem)
+            spikes.append(spk)
+        spk_ref = torch.stack(spikes)
+        (spk_ref * upstream).sum().backward()
+
+        x_fused = x.clone().requires_grad_(True)
+        params = [torch.tensor(v, requires_grad=True) for v in (alpha, beta, threshold)]
+        spk_fused = fused_cuba_layer(x_fused, *params, slope)
+        (spk_fused * upstream).sum().backward()
+
+        case = f"seed={seed} shape={shape} alpha={alpha} beta={beta} thr={threshold}"
+        assert 0.05 < spk_ref.mean().item() < 0.95, case
+        assert torch.equal(spk_fused, spk_ref), case
+        assert x_ref.grad is not None and x_fused.grad is not None
+        scale = max(1.0, x_ref.grad.abs().sum().item() + upstream.abs().sum().item())
+        torch.testing.assert_close(x_fused.grad, x_ref.grad, rtol=RTOL,
+                                   atol=ATOL * max(1.0, x_ref.grad.abs().max().item()), msg=case)  # fmt: skip
+        for mine, ref in zip(params, (lif.alpha, lif.beta, lif.threshold), strict=True):
+            assert mine.grad is not None and ref.grad is not None
+            torch.testing.assert_close(mine.grad, ref.grad.reshape(()), rtol=1e-4,
+                                       atol=ATOL * scale, msg=case)  # fmt: skip
+        assert lif.threshold.grad.abs().item() > 0.0, case
+        if alpha > 0.0:
+            assert lif.alpha.grad.abs().item() > 0.0, case  # a real gradient is compared
+
+
 def test_fused_lif_float32_no_input_mutation() -> None:
     x = torch.randn(6, 2, 5) + 0.5
     before = x.clone()
@@ -105,9 +156,10 @@ def test_fused_lif_float32_no_input_mutation() -> None:
     assert set(np.unique(out.numpy()).tolist()) <= {0.0, 1.0}
 
 
+@pytest.mark.parametrize("neuron", ["lif", "cuba"])
 @pytest.mark.parametrize("encoding", ["current", "rate"])
 @pytest.mark.parametrize("learn", [False, True])
-def test_spiking_actor_fused_equals_unfused(encoding: str, learn: bool) -> None:
+def test_spiking_actor_fused_equals_unfused(encoding: str, learn: bool, neuron: str) -> None:
     cfg = SNNConfig(
         num_steps=6,
         hidden=(24, 20),
@@ -117,6 +169,9 @@ def test_spiking_actor_fused_equals_unfused(encoding: str, learn: bool) -> None:
         learn_beta=learn,
         learn_threshold=learn,
         surrogate_slope=10.0,
+        neuron=neuron,  # type: ignore[arg-type]
+        alpha=0.4,
+        learn_alpha=learn,
     )
     torch.manual_seed(3)
     actor = SpikingActor(n_in=11, n_out=4, cfg=cfg)
@@ -140,6 +195,8 @@ def test_spiking_actor_fused_equals_unfused(encoding: str, learn: bool) -> None:
     assert g1.keys() == g0.keys()
     if learn:
         assert {"lif1.beta", "lif1.threshold", "lif2.beta", "lif2.threshold"} <= g0.keys()
+    if learn and neuron == "cuba":
+        assert {"lif1.alpha", "lif2.alpha"} <= g0.keys()
     for name in g0:
         scale = max(1.0, g0[name].abs().max().item())
         torch.testing.assert_close(g1[name], g0[name], rtol=RTOL, atol=1e-5 * scale, msg=name)

@@ -25,7 +25,9 @@ from typer.testing import CliRunner
 
 from snnkart.cli import app
 from snnkart.envs.spec import ENV_REVISION, env_spec, spec_hash
+from snnkart.errors import ExportError
 from snnkart.eval.episodes import EVAL_SCHEMA, EvalSummary, run_episodes
+from snnkart.export.nir_export import export_nir
 from snnkart.rl.checkpoint import (
     CHECKPOINT_SCHEMA,
     CheckpointError,
@@ -119,6 +121,7 @@ def trained(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, T
         ("steer", "ann", ["action_mode=continuous"]),
         ("gazebo", "snn", ["action_mode=continuous"]),
         ("grid", "snn", ["snn.encoding=rate"]),
+        ("steer", "snn", ["snn.neuron=cuba", "snn.learn_alpha=true"]),
     ],
 )
 def test_tiny_training_run(tmp_path: Path, env: str, policy: str, extra: list[str]) -> None:
@@ -136,6 +139,12 @@ def test_tiny_training_run(tmp_path: Path, env: str, policy: str, extra: list[st
         assert not trainer.policy.discrete
     if "snn.encoding=rate" in extra:
         assert saved["snn"]["encoding"] == "rate"
+    if "snn.neuron=cuba" in extra:  # snntorch Synaptic layers, trained through the fused kernel
+        assert saved["snn"]["neuron"] == "cuba"
+        assert all(type(lif).__name__ == "Synaptic" for lif in trainer.policy.snn.lifs)
+        assert trainer.policy.snn.lif1.alpha.item() != 0.5  # learned: it moved
+        with pytest.raises(ExportError, match="CubaLIF"):
+            export_nir(load_run(run_dir), tmp_path / "policy.nir")
 
     for name in ("checkpoint.pt", "checkpoint.json", "checkpoints/iter_000002.pt"):
         assert (run_dir / name).is_file(), name

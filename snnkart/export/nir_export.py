@@ -48,6 +48,12 @@ def check_exportable(policy: Any) -> None:
             f"only spiking policies can be exported to NIR for Lava; this run trained a "
             f"{getattr(policy, 'kind', type(policy).__name__).upper()} policy"
         )
+    if policy.cfg.neuron != "lif":
+        raise ExportError(
+            f"this policy's neurons are snn.neuron = {policy.cfg.neuron!r} (current-based LIF); "
+            "their NIR export (CubaLIF) and deployment come with the NIR tools (issue 18): "
+            "export a policy trained with snn.neuron = 'lif'"
+        )
     for i, lif in enumerate(policy.snn.lifs, start=1):
         name = f"lif{i}"
         # The buffer, not the string attribute, is what forward() uses and a state dict sets.

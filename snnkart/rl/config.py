@@ -83,6 +83,13 @@ class SNNConfig(_Section):
     hidden: tuple[int, ...] = Field(
         (64, 64), description="sizes of the spiking layers: 1 to 3 layers, e.g. [64, 64]"
     )
+    neuron: Literal["lif", "cuba"] = Field(
+        "lif",
+        description="lif: snntorch Leaky; cuba: current-based LIF (snntorch Synaptic: a "
+        "synaptic current decaying by alpha feeds the membrane; Lava's and Loihi's LIF)",
+    )
+    alpha: float = Field(0.5, ge=0.0, lt=1.0, description="cuba: synaptic current decay")
+    learn_alpha: bool = False
     beta: float = Field(0.9, ge=0.0, lt=1.0, description="membrane decay per SNN step")
     threshold: float = Field(1.0, gt=0.0)
     learn_beta: bool = False

@@ -20,7 +20,7 @@ from torch import nn
 from torch.distributions import Categorical, Normal
 
 from snnkart.rl.config import ANNConfig, SNNConfig
-from snnkart.rl.lif import fused_lif_layer
+from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
 
 BETA_MAX = 0.999
 """Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
@@ -160,14 +160,10 @@ class SpikingActor(nn.Module):
         with torch.no_grad():
             for fc in self.fcs:
                 fc.weight.mul_(cfg.init_gain)
-        grad = surrogate.fast_sigmoid(slope=cfg.surrogate_slope)
         for i in range(1, len(sizes)):
-            setattr(self, f"lif{i}", snn.Leaky(
-                beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
-                spike_grad=grad, reset_mechanism="zero", reset_delay=False,
-                learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
-            ))  # fmt: skip
+            setattr(self, f"lif{i}", _neuron(cfg))
         self.lifs: list[snn.Leaky] = [getattr(self, f"lif{i}") for i in range(1, len(sizes))]
+        self.cuba = cfg.neuron == "cuba"
 
     def encode(self, obs01: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         """Rate encoding: Bernoulli spike trains ``[B, T, n_in]`` with p = obs01."""
@@ -187,24 +183,48 @@ class SpikingActor(nn.Module):
             current = self.fcs[0](obs01).unsqueeze(0).expand(self.T, -1, -1)
         spikes: list[torch.Tensor] = []
         if fused:
+            slope = self.cfg.surrogate_slope
             for i, lif in enumerate(self.lifs):
                 if i > 0:
                     current = self.fcs[i](spikes[-1])
                 spikes.append(
-                    fused_lif_layer(current, lif.beta, lif.threshold, self.cfg.surrogate_slope)
+                    fused_cuba_layer(current, lif.alpha, lif.beta, lif.threshold, slope)
+                    if self.cuba
+                    else fused_lif_layer(current, lif.beta, lif.threshold, slope)
                 )
         else:
-            mems = [torch.zeros(B, fc.out_features) for fc in self.fcs]
-            steps: list[list[torch.Tensor]] = [[] for _ in self.lifs]
-            for t in range(self.T):
-                a = current[t]
-                for i, lif in enumerate(self.lifs):
-                    a, mems[i] = lif(a if i == 0 else self.fcs[i](a), mems[i])
-                    steps[i].append(a)
-            spikes = [torch.stack(s) for s in steps]
+            spikes = self._stepped(current, B)
         out = self.readout(spikes[-1].mean(0))
         rates = torch.stack([s.mean() for s in spikes])
         return out, rates, spikes
+
+    def _stepped(self, current: torch.Tensor, B: int) -> list[torch.Tensor]:
+        """snntorch's modules stepped T times from zero state: spikes ``[T, B, n]`` per layer."""
+        mems = [torch.zeros(B, fc.out_features) for fc in self.fcs]
+        syns = [torch.zeros(B, fc.out_features) for fc in self.fcs]
+        steps: list[list[torch.Tensor]] = [[] for _ in self.lifs]
+        for t in range(self.T):
+            a = current[t]
+            for i, lif in enumerate(self.lifs):
+                x = a if i == 0 else self.fcs[i](a)
+                if self.cuba:
+                    a, syns[i], mems[i] = lif(x, syns[i], mems[i])
+                else:
+                    a, mems[i] = lif(x, mems[i])
+                steps[i].append(a)
+        return [torch.stack(s) for s in steps]
+
+
+def _neuron(cfg: SNNConfig) -> snn.Leaky:
+    """One spiking layer's neurons: reset to zero right after a spike (Lava's semantics)."""
+    common = dict(
+        beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
+        spike_grad=surrogate.fast_sigmoid(slope=cfg.surrogate_slope), reset_mechanism="zero",
+        reset_delay=False, learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
+    )  # fmt: skip
+    if cfg.neuron == "cuba":
+        return snn.Synaptic(alpha=torch.tensor(cfg.alpha), learn_alpha=cfg.learn_alpha, **common)
+    return snn.Leaky(**common)
 
 
 class SNNPolicy(ActorCritic):
@@ -261,6 +281,8 @@ class SNNPolicy(ActorCritic):
             for lif in self.snn.lifs:
                 lif.beta.clamp_(0.0, BETA_MAX)
                 lif.threshold.clamp_(min=THRESHOLD_MIN)
+                if self.snn.cuba:
+                    lif.alpha.clamp_(0.0, BETA_MAX)
 
 
 def build_policy(
