@@ -119,3 +119,27 @@ def _saved_steps(out: Path) -> dict[Path, int]:
         except (OSError, ValueError, KeyError):
             continue
     return steps
+
+
+@pytest.mark.timeout(400)
+def test_a_study_runs_its_trainings_as_tune_trials(tmp_path: Path) -> None:
+    """``snnkart study --ray``: the same runs, trained as Tune trials, then evaluated and
+    summarised as on the local pool; no Ray process left."""
+    assert not _ray_processes(), "a Ray instance is already running"
+    cfg = tmp_path / "study.toml"
+    cfg.write_text(
+        'schema = "snnkart/study-config/v1"\nenvs = ["grid"]\npolicies = ["ann", "snn"]\n'
+        f"seeds = [1]\nsteps = {2 * BATCH}\neval_episodes = 1\nsets = {json.dumps(TINY)}\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-m", "snnkart.cli", "study", str(cfg), "--out", str(tmp_path / "out"),
+         "--ray", "--jobs", "2"],
+        cwd=ROOT, capture_output=True, text=True, timeout=380,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr[-3000:]
+    record = json.loads((tmp_path / "out" / "study.json").read_text())
+    assert [(r["name"], r["steps"]) for r in record["runs"]] == [
+        ("small_S-grid-ann-s1", 2 * BATCH), ("small_S-grid-snn-s1", 2 * BATCH)]  # fmt: skip
+    launch = json.loads((tmp_path / "out" / "runs" / "launch.json").read_text())
+    assert launch["backend"] == "ray"
+    assert not _ray_processes(), "Ray processes outlived the study"
