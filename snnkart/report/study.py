@@ -4,6 +4,7 @@ kind; PNG and SVG)."""
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -102,8 +103,13 @@ def _band(ax: Any, runs: list[dict[str, Any]], key: str, colour: str, label: str
     steps = np.asarray(runs[0]["curve"]["steps"][:n], dtype=float)
     ys = np.array([[np.nan if v is None else v for v in r["curve"][key][:n]] for r in runs],
                   dtype=float)  # fmt: skip
-    ax.plot(steps, np.nanmedian(ys, axis=0), color=colour, label=f"{label} (median of {len(runs)})")
-    ax.fill_between(steps, np.nanmin(ys, axis=0), np.nanmax(ys, axis=0), color=colour, alpha=0.2)
+    with warnings.catch_warnings():  # iterations in which no seed ended an episode: a gap
+        warnings.simplefilter("ignore", RuntimeWarning)
+        median, low, high = (np.nanmedian(ys, axis=0), np.nanmin(ys, axis=0),
+                             np.nanmax(ys, axis=0))  # fmt: skip
+    ax.plot(steps, median, color=colour, label=f"{label} (median of {len(runs)})")
+    ax.fill_between(steps, low, high, color=colour, alpha=0.2)
+    ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")
 
 
 def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
