@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import json
 import os
 import platform
 import subprocess
@@ -75,13 +74,11 @@ def output_path(name: str, out: Path | None) -> Path:
 
 def training_seconds(run_dir: Path) -> tuple[float, int] | None:
     """Seconds spent training and the iterations, from the run's per-iteration metrics (each
-    iteration's steps / its steps per second); None without ``metrics.jsonl``."""
-    path = run_dir / "metrics.jsonl"
-    if not path.is_file():
+    iteration's steps / its steps per second, as ``snnkart study`` counts them); None without
+    ``metrics.jsonl``."""
+    from snnkart.app.study import curve
+
+    if not (run_dir / "metrics.jsonl").is_file():
         return None
-    rows = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
-    seconds = sum(
-        (r["global_step"] - prev) / r["charts/SPS"]
-        for r, prev in zip(rows, [0] + [r["global_step"] for r in rows[:-1]], strict=True)
-    )
-    return seconds, len(rows)
+    c = curve(run_dir)
+    return sum(c["seconds"]), len(c["steps"])

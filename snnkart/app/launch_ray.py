@@ -99,19 +99,23 @@ class _Stop:
 
 
 @contextlib.contextmanager
-def _ray(address: str | None, cpus: int | None) -> Iterator[None]:
-    """A local Ray instance for the duration (shut down after, also on Ctrl-C), or a cluster."""
+def _ray(address: str | None, cpus: int | None) -> Iterator[_Stop]:
+    """A local Ray instance for the duration (shut down after, also on Ctrl-C), or a cluster;
+    Ctrl-C and SIGTERM meanwhile stop Tune gracefully (the :class:`_Stop` it yields says
+    which signal came)."""
     import ray
 
     before = set(_ray_pids())
-    ray.init(address=address, num_cpus=None if address else cpus, include_dashboard=False,
-             log_to_driver=False, configure_logging=False)  # fmt: skip
-    try:
-        yield
-    finally:
-        ray.shutdown()
-        if address is None:
-            _reap_local_ray(before)
+    with _Stop() as stop:
+        ray.init(address=address, num_cpus=None if address else cpus, include_dashboard=False,
+                 log_to_driver=False, configure_logging=False)  # fmt: skip
+        stop.arm()  # again: ray.init installs its own SIGTERM handler
+        try:
+            yield stop
+        finally:
+            ray.shutdown()
+            if address is None:
+                _reap_local_ray(before)
 
 
 def _ray_pids() -> list[int]:
@@ -153,8 +157,7 @@ def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
         space = {"spec": tune.grid_search([
             {"name": s.name, "train": s.config.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out)} for s in todo
         ])}  # fmt: skip
-        with _Stop() as stop, _ray(address, cpus):
-            stop.arm()
+        with _ray(address, cpus) as stop:
             tuner = tune.Tuner(
                 tune.with_resources(lambda c: _train_trial(c["spec"]), {"cpu": 1}),
                 param_space=space,
@@ -222,8 +225,7 @@ def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
         raise UsageError("give at least one --param to search")
     out = Path(out).resolve()
     iterations = max(1, base.total_steps // base.batch_size)
-    with _Stop() as stop, _ray(address, cpus):
-        stop.arm()
+    with _ray(address, cpus) as stop:
         tuner = tune.Tuner(
             tune.with_resources(_train_trial, {"cpu": 1}),
             param_space={"train": base.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out), "search": space},

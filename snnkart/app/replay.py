@@ -3,6 +3,7 @@ or to a GIF/MP4."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -12,9 +13,8 @@ from snnkart.errors import UsageError
 
 
 def run_replay(run_dir: Path, mode: str, out: Path | None, every: int, reporter: Reporter) -> None:
-    from snnkart.envs.render import Renderer
     from snnkart.eval.replay import frames, load_ghosts
-    from snnkart.eval.video import check_video_path, video_writer
+    from snnkart.eval.video import check_video_path
     from snnkart.rl.checkpoint import load_checkpoint
     from snnkart.rl.config import read_run_config
     from snnkart.rl.run_dir import checkpoint_track
@@ -28,18 +28,28 @@ def run_replay(run_dir: Path, mode: str, out: Path | None, every: int, reporter:
     latest = run_dir / "checkpoint.pt"  # carries the track, which may have moved since
     track = checkpoint_track(load_checkpoint(latest)[1], cfg, latest) if latest.is_file() else None
     env = cfg.make_env(track=track).unwrapped
-    renderer = Renderer(env, human=out is None)  # type: ignore[arg-type]
+    _show(env, frames(ghosts, mode, every), out, every)
+    if out is not None:
+        reporter.message(f"replay of {len(ghosts)} episodes written to {out}")
+
+
+def _show(env: Any, shown: Iterator[tuple[Any, Any, Any]], out: Path | None, every: int) -> None:
+    """Draw (positions, colours, panel lines) frames of many karts on ``env``'s track: in a
+    window (until closed), or to the GIF/MP4 ``out``. Closes the env."""
+    from snnkart.envs.render import Renderer
+    from snnkart.eval.video import video_writer
+
+    renderer = Renderer(env, human=out is None)
     try:
         if out is None:
-            for positions, colours, lines in frames(ghosts, mode, every):
+            for positions, colours, lines in shown:
                 renderer.draw_ghosts(positions, colours, lines)
                 if renderer.quit_requested():
                     break
         else:
             with video_writer(out, fps=RENDER_FPS / every) as writer:
-                for positions, colours, lines in frames(ghosts, mode, every):
+                for positions, colours, lines in shown:
                     writer.append_data(renderer.draw_ghosts(positions, colours, lines))
-            reporter.message(f"replay of {len(ghosts)} episodes written to {out}")
     finally:
         renderer.close()
         env.close()
@@ -50,9 +60,8 @@ def run_compare(run_dirs: list[Path], out: Path | None, seed: int, track: str | 
     """Up to four trained policies drive one seeded episode each on one track (the first
     run's, or ``track``), drawn together in distinct colours with a legend: in a window, or
     to a GIF/MP4. Returns how each episode ended."""
-    from snnkart.envs.render import Renderer
     from snnkart.eval.replay import RACE_COLOURS, race_frames
-    from snnkart.eval.video import check_video_path, video_writer
+    from snnkart.eval.video import check_video_path
 
     if not 1 <= len(run_dirs) <= len(RACE_COLOURS):
         raise UsageError(f"--compare takes 1 to {len(RACE_COLOURS)} runs, got {len(run_dirs)}")
@@ -61,21 +70,9 @@ def run_compare(run_dirs: list[Path], out: Path | None, seed: int, track: str | 
     if out is not None:
         check_video_path(out)
     racers, env = _race(run_dirs, seed, track)
-    renderer = Renderer(env, human=out is None)  # type: ignore[arg-type]
-    try:
-        if out is None:
-            for positions, colours, lines in race_frames(racers, every):
-                renderer.draw_ghosts(positions, colours, lines)
-                if renderer.quit_requested():
-                    break
-        else:
-            with video_writer(out, fps=RENDER_FPS / every) as writer:
-                for positions, colours, lines in race_frames(racers, every):
-                    writer.append_data(renderer.draw_ghosts(positions, colours, lines))
-            reporter.message(f"comparison of {len(racers)} runs written to {out}")
-    finally:
-        renderer.close()
-        env.close()
+    _show(env, race_frames(racers, every), out, every)
+    if out is not None:
+        reporter.message(f"comparison of {len(racers)} runs written to {out}")
     return [{"run": str(d), "label": r.label, "outcome": r.outcome}
             for d, r in zip(run_dirs, racers, strict=True)]  # fmt: skip
 

@@ -69,9 +69,6 @@ class Stall:
     next checkpoint starts the count again."""
 
     def __init__(self) -> None:
-        self.restart()
-
-    def restart(self) -> None:
         self.checkpoint, self.best, self.steps = -1, math.inf, 0
 
     def update(self, checkpoint: int, distance: float) -> int:

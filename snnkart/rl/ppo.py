@@ -118,7 +118,6 @@ class Trainer:
             self.out.trim_metrics(self.progress.iteration)
         self.num_iterations = math.ceil(cfg.total_steps / cfg.batch_size)
         self.metrics_path = self.out.metrics_path
-        self.save_every_iteration = False
 
     # -- checkpoints -------------------------------------------------------------------------
 
@@ -179,14 +178,13 @@ class Trainer:
         iteration. ``save_every_iteration`` also writes the latest checkpoint after every
         iteration, before ``on_iteration`` (for a worker that may be stopped from outside
         without a signal, as Ray Tune stops its trials)."""
-        self.save_every_iteration = save_every_iteration
         buf = self._allocate()
         self.out.open_tensorboard()
         self.rollout.reset(seed=self.cfg.seed + 7919 * self.progress.iteration)
         self.policy.train()
         with self._interrupts():
             while self.progress.iteration < self.num_iterations and not _interrupted():
-                record = self._iteration(buf)
+                record = self._iteration(buf, save_every_iteration)
                 if record is None:
                     break
                 if on_iteration is not None:
@@ -228,7 +226,7 @@ class Trainer:
         if snn.rate_reg_warmup > 0.0:
             self.rate_reg *= min(1.0, (1.0 - frac) / snn.rate_reg_warmup)
 
-    def _iteration(self, buf: RolloutBuffer) -> dict[str, Any] | None:
+    def _iteration(self, buf: RolloutBuffer, save_latest: bool = False) -> dict[str, Any] | None:
         """One iteration: rollout, GAE, update, record, checkpoint; None if an interrupt cut
         the rollout short (its progress and normaliser updates are then undone)."""
         p = self.cfg.ppo
@@ -264,7 +262,7 @@ class Trainer:
             or self.progress.iteration == self.num_iterations
         ):
             self.save()
-        elif self.save_every_iteration:
+        elif save_latest:
             self.save(history=False)
         return record
 
