@@ -11,11 +11,13 @@ import sys
 from pathlib import Path
 
 import matplotlib.image
+import matplotlib.pyplot as plt
 import pytest
 
 from snnkart.app.study import load_study, plan, steps_to
 from snnkart.app.study_summary import pct_of_ann, spread, summarise
 from snnkart.errors import UsageError
+from snnkart.report.study import _band
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["ppo.num_envs=2", "ppo.num_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2",
@@ -148,3 +150,16 @@ def test_the_committed_studies_plan(path: Path) -> None:
     assert runs and len({r.spec.name for r in runs}) == len(runs)
     for run in runs:
         assert (ROOT / run.track).is_file() or run.track in ("small_S", "big_S")
+
+
+def test_a_run_stopped_early_drops_out_of_the_band_where_it_ended() -> None:
+    runs = [
+        {"curve": {"steps": [1, 2, 3, 4], "finishes": [0, 10, 20, 30]}},
+        {"curve": {"steps": [1, 2], "finishes": [2, 12]}},  # stopped after two iterations
+    ]
+    fig, ax = plt.subplots()
+    _band(ax, runs, "finishes", "blue", "ANN")
+    solid, dotted = ax.get_lines()
+    assert list(solid.get_xdata()) == [1, 2] and list(solid.get_ydata()) == [1, 11]
+    assert list(dotted.get_xdata()) == [2, 3, 4] and list(dotted.get_ydata()) == [11, 20, 30]
+    plt.close(fig)

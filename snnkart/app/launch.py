@@ -51,13 +51,17 @@ class RunResult:
     episodes: int
     seconds: float
     error: str | None = None
+    stopped_early: bool = False
+    """The run's ``stop`` rule ended it before ``total_steps``."""
 
 
-def done_steps(run_dir: Path) -> int:
+def complete(run_dir: Path, spec: RunSpec) -> bool:
+    """The run in ``run_dir`` trained all its steps, or its ``stop`` rule ended it."""
     try:
-        return int(json.loads((run_dir / "checkpoint.json").read_text())["global_step"])
-    except (OSError, ValueError, KeyError):
-        return 0
+        meta = json.loads((run_dir / "checkpoint.json").read_text())
+        return bool(meta.get("stopped_early")) or meta["global_step"] >= spec.config.total_steps
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
 
 
 def result_of(
@@ -72,7 +76,7 @@ def result_of(
         global_step=int(meta.get("global_step", 0)), total_steps=spec.config.total_steps,
         first_finish_step=None if first is None or first < 0 else int(first),
         finishes=int(meta.get("finishes", 0)), episodes=int(meta.get("episodes", 0)),
-        seconds=seconds, error=error,
+        seconds=seconds, error=error, stopped_early=bool(meta.get("stopped_early", False)),
     )  # fmt: skip
 
 
@@ -97,7 +101,7 @@ class LocalPool:
         pending = []
         for spec in specs:
             run_dir = self.out / spec.name
-            if done_steps(run_dir) >= spec.config.total_steps:
+            if complete(run_dir, spec):
                 results[spec.name] = result_of(spec, run_dir, "reused", 0.0, None)
             else:
                 pending.append(spec)

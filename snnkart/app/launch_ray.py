@@ -27,7 +27,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from snnkart.app.launch import RunResult, RunSpec, done_steps, result_of
+from snnkart.app.launch import RunResult, RunSpec, complete, result_of
 from snnkart.errors import UsageError
 from snnkart.faults import Interrupted
 from snnkart.io import write_json
@@ -151,7 +151,7 @@ def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
     from ray import tune
 
     out = Path(out).resolve()
-    todo = [s for s in specs if done_steps(out / s.name) < s.config.total_steps]
+    todo = [s for s in specs if not complete(out / s.name, s)]
     signum = None
     if todo:
         space = {"spec": tune.grid_search([
@@ -183,7 +183,7 @@ def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
 
 
 def _status(run_dir: Path, spec: RunSpec, stopped: bool) -> str:
-    if done_steps(run_dir) >= spec.config.total_steps:
+    if complete(run_dir, spec):
         return "done"
     return "interrupted" if stopped else "failed"
 

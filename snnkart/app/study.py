@@ -244,6 +244,7 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
     return {
         "name": run.spec.name, "track": run.track, "env": run.env, "policy": run.policy,
         "seed": run.seed, "status": result.status, "steps": result.global_step,
+        "stopped_early": result.stopped_early,
         "first_finish_step": result.first_finish_step,
         "steps_to_finishes": steps_to(study.finishes, c),
         "training_finishes": result.finishes, "training_episodes": result.episodes,

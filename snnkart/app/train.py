@@ -29,8 +29,12 @@ def run_training(cfg: TrainConfig, run_dir: Path, reporter: Reporter, resume: bo
         finally:
             trainer.close()
     first = result.first_finish_step
+    ended = "interrupted" if trainer.interrupted else "done"
+    if trainer.stopped_early:
+        stop = cfg.stop
+        ended = f"stopped early ({stop.checks} checks in a row at >= {stop.success:.0%} success)"
     reporter.message(
-        f"{'interrupted' if trainer.interrupted else 'done'} at step {result.global_step:,}: "
+        f"{ended} at step {result.global_step:,}: "
         f"{result.finishes:,} finished episodes of {result.episodes:,}; first finish at "
         f"{'never' if first < 0 else f'step {first:,}'}"
     )

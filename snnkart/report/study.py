@@ -98,16 +98,23 @@ def _rows(env: str, by: dict[str, dict[str, Any]], orig: dict[str, float] | None
 
 
 def _band(ax: Any, runs: list[dict[str, Any]], key: str, colour: str, label: str) -> None:
-    """Median line and min-max band over seeds, on the shortest run's steps."""
-    n = min(len(r["curve"]["steps"]) for r in runs)
-    steps = np.asarray(runs[0]["curve"]["steps"][:n], dtype=float)
-    ys = np.array([[np.nan if v is None else v for v in r["curve"][key][:n]] for r in runs],
-                  dtype=float)  # fmt: skip
+    """Median line and min-max band over seeds. A run stopped early (the study's ``stop``
+    rule) drops out where it ended; from there the median is drawn dotted, over the seeds
+    still training."""
+    longest = max(runs, key=lambda r: len(r["curve"]["steps"]))
+    steps = np.asarray(longest["curve"]["steps"], dtype=float)
+    ys = np.full((len(runs), len(steps)), np.nan)
+    for row, r in zip(ys, runs, strict=True):
+        values = r["curve"][key]
+        row[: len(values)] = [np.nan if v is None else v for v in values]
     with warnings.catch_warnings():  # iterations in which no seed ended an episode: a gap
         warnings.simplefilter("ignore", RuntimeWarning)
         median, low, high = (np.nanmedian(ys, axis=0), np.nanmin(ys, axis=0),
                              np.nanmax(ys, axis=0))  # fmt: skip
-    ax.plot(steps, median, color=colour, label=f"{label} (median of {len(runs)})")
+    full = min(len(r["curve"]["steps"]) for r in runs)
+    ax.plot(steps[:full], median[:full], color=colour, label=f"{label} (median of {len(runs)})")
+    if full < len(steps):
+        ax.plot(steps[full - 1 :], median[full - 1 :], color=colour, ls=":")
     ax.fill_between(steps, low, high, color=colour, alpha=0.2)
     ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")
 

@@ -123,6 +123,21 @@ class SNNConfig(_Section):
         return hidden
 
 
+class StopConfig(_Section):
+    """Stopping a run before ``total_steps`` once it has learned (off unless ``finishes`` is
+    set): after ``finishes`` finished training episodes, every ``every`` env steps the
+    deterministic policy drives ``episodes`` seeded evaluation episodes, and the run stops
+    once ``checks`` checks in a row reach ``success``. The learning-rate schedule still
+    spans ``total_steps``, so a stopped run trained exactly as the uncapped run did."""
+
+    finishes: int | None = Field(None, ge=1, description="finished episodes before checking")
+    success: float = Field(0.8, gt=0.0, le=1.0, description="eval success rate to reach")
+    every: int = Field(50_000, ge=1, description="env steps between checks")
+    checks: int = Field(2, ge=1, description="consecutive checks at or above success")
+    episodes: int = Field(20, ge=1, description="evaluation episodes per check")
+    seed: int = Field(90_000, description="the checks' episodes use seeds seed, seed+1, ...")
+
+
 class RunConfig(_Section):
     checkpoint_every: int = Field(10, ge=1, description="iterations between checkpoints")
     trajectories: bool = Field(True, description="record kart positions for replay")
@@ -187,6 +202,7 @@ class TrainConfig(BaseModel):
     ann: ANNConfig = ANNConfig()
     snn: SNNConfig = SNNConfig()
     run: RunConfig = RunConfig()
+    stop: StopConfig = StopConfig()
 
     @model_validator(mode="before")
     @classmethod

@@ -12,6 +12,7 @@ import itertools
 import math
 from dataclasses import dataclass
 
+import gymnasium as gym
 import numpy as np
 import snntorch as snn
 import torch
@@ -19,7 +20,8 @@ from snntorch import surrogate
 from torch import nn
 from torch.distributions import Categorical, Normal
 
-from snnkart.rl.config import ANNConfig, SNNConfig
+from snnkart.envs.base import KartEnv
+from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
 from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
 
 BETA_MAX = 0.999
@@ -303,3 +305,25 @@ def build_policy(
             obs_dim, action_dim, discrete, snn_cfg, ann.hidden, obs_low, obs_high, init_log_std
         )
     raise ValueError(f"unknown policy kind {kind!r}; choose ann or snn")
+
+
+def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
+    space = env.action_space
+    if isinstance(space, gym.spaces.Discrete):
+        discrete, action_dim = True, int(space.n)
+    elif isinstance(space, gym.spaces.Box):
+        discrete, action_dim = False, int(space.low.shape[0])
+    else:
+        raise TypeError(f"unsupported action space {space}")
+    obs_space = env.observation_space
+    return build_policy(
+        cfg.policy,
+        int(obs_space.low.shape[0]),
+        action_dim,
+        discrete,
+        cfg.ann,
+        cfg.snn,
+        obs_space.low.astype(np.float64),
+        obs_space.high.astype(np.float64),
+        cfg.ppo.init_log_std,
+    )

@@ -20,46 +20,23 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import torch
 from torch import nn
 
 from snnkart import faults
-from snnkart.envs.base import KartEnv
 from snnkart.envs.spec import env_spec, spec_hash
 from snnkart.envs.tracks import embed_track, load_track
 from snnkart.errors import RunError
 from snnkart.rl.buffer import Batch, RolloutBuffer, compute_gae
 from snnkart.rl.checkpoint import RunningMeanStd, check_compatible, load_checkpoint
 from snnkart.rl.config import TrainConfig, read_run_config
-from snnkart.rl.policies import ActorCritic, build_policy
+from snnkart.rl.policies import policy_for
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
 from snnkart.rl.run_dir import RunDir, checkpoint_track
+from snnkart.rl.stopping import check, stopped
 
 __all__ = ["Progress", "RunError", "Trainer", "compute_gae", "normalize_obs", "policy_for"]
-
-
-def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
-    space = env.action_space
-    if isinstance(space, gym.spaces.Discrete):
-        discrete, action_dim = True, int(space.n)
-    elif isinstance(space, gym.spaces.Box):
-        discrete, action_dim = False, int(space.low.shape[0])
-    else:
-        raise TypeError(f"unsupported action space {space}")
-    obs_space = env.observation_space
-    return build_policy(
-        cfg.policy,
-        int(obs_space.low.shape[0]),
-        action_dim,
-        discrete,
-        cfg.ann,
-        cfg.snn,
-        obs_space.low.astype(np.float64),
-        obs_space.high.astype(np.float64),
-        cfg.ppo.init_log_std,
-    )
 
 
 def _resolve_config(cfg: TrainConfig, run_dir: Path, resume: bool) -> TrainConfig:
@@ -162,6 +139,7 @@ class Trainer:
             "config": self.cfg.model_dump(mode="json", by_alias=True),
             "track": embed_track(self.track, self.cfg.track),
             **self.progress.state(),
+            "stopped_early": self.stopped_early,
         }
         return self.out.save(state, meta, self.progress.iteration, history)
 
@@ -172,7 +150,7 @@ class Trainer:
         on_iteration: Callable[[dict[str, Any]], None] | None = None,
         save_every_iteration: bool = False,
     ) -> Progress:
-        """Run until ``total_steps``; Ctrl-C or SIGTERM saves a checkpoint before returning
+        """Run until ``total_steps`` (or the ``stop`` rule); Ctrl-C or SIGTERM saves a checkpoint before returning
         (``self.interrupted_by`` is then the signal). The interrupt is taken between env
         steps; a rollout cut short is dropped, so the checkpoint holds the last whole
         iteration. ``save_every_iteration`` also writes the latest checkpoint after every
@@ -183,7 +161,7 @@ class Trainer:
         self.rollout.reset(seed=self.cfg.seed + 7919 * self.progress.iteration)
         self.policy.train()
         with self._interrupts():
-            while self.progress.iteration < self.num_iterations and not _interrupted():
+            while self.progress.iteration < self.num_iterations and not self._done():
                 record = self._iteration(buf, save_every_iteration)
                 if record is None:
                     break
@@ -192,6 +170,14 @@ class Trainer:
             if _interrupted():
                 self.save()
         return self.progress
+
+    @property
+    def stopped_early(self) -> bool:
+        """The ``stop`` rule ended the run before ``total_steps``."""
+        return stopped(self.cfg.stop, self.progress)
+
+    def _done(self) -> bool:
+        return self.stopped_early or _interrupted()
 
     @contextlib.contextmanager
     def _interrupts(self) -> Iterator[None]:
@@ -251,6 +237,8 @@ class Trainer:
         losses = self.update(buf.flat(advantages, returns))
         update_time = time.perf_counter() - update_start
         record = self._record(stats, losses, rollout_time, update_time)
+        stop = check(self.cfg, self.progress, self.policy, self.obs_rms, self.track, _interrupted)
+        record.update(stop)
         self.out.log(record, self.progress.global_step)
         if self.cfg.run.trajectories:
             self.out.write_trajectories(
@@ -260,6 +248,7 @@ class Trainer:
         if (
             self.progress.iteration % self.cfg.run.checkpoint_every == 0
             or self.progress.iteration == self.num_iterations
+            or self.stopped_early
         ):
             self.save()
         elif save_latest:
@@ -390,4 +379,8 @@ def train(
         progress = trainer.train(on_iteration, save_every_iteration)
     finally:
         trainer.close()
-    return {**progress.state(), "interrupted": trainer.interrupted}
+    return {
+        **progress.state(),
+        "interrupted": trainer.interrupted,
+        "stopped_early": trainer.stopped_early,
+    }

@@ -60,6 +60,10 @@ class Progress:
     episodes: int = 0
     finishes: int = 0
     first_finish_step: int = -1
+    stop_mark: int = 0
+    """How many multiples of ``stop.every`` the early-stop checks have handled."""
+    stop_streak: int = 0
+    """Early-stop checks in a row at or above ``stop.success``."""
 
     def state(self) -> dict[str, int]:
         return dict(self.__dict__)

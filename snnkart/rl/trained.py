@@ -18,8 +18,7 @@ from snnkart.rl.checkpoint import (
     load_checkpoint,
 )
 from snnkart.rl.config import TrainConfig, read_run_config
-from snnkart.rl.policies import ActorCritic, SNNPolicy
-from snnkart.rl.ppo import policy_for
+from snnkart.rl.policies import ActorCritic, SNNPolicy, policy_for
 from snnkart.rl.rollout import normalize_obs
 from snnkart.rl.run_dir import checkpoint_track
 

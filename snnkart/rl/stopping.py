@@ -1,0 +1,87 @@
+"""Stopping a run once it has learned (the ``stop`` section of the train config).
+
+Every ``stop.every`` env steps, once the run has ``stop.finishes`` finished training
+episodes, the deterministic policy (argmax or mean, normalisation frozen: what ``snnkart
+eval`` runs in torch) drives ``stop.episodes`` seeded episodes; ``stop.checks`` checks in a
+row at or above ``stop.success`` stop the run. A check draws nothing from the training
+generators, so a run that is not stopped computes exactly what it would without the rule.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from snnkart.envs.tracks import Track
+from snnkart.rl.checkpoint import RunningMeanStd
+from snnkart.rl.config import StopConfig, TrainConfig
+from snnkart.rl.policies import ActorCritic
+from snnkart.rl.rollout import Progress
+from snnkart.rl.trained import LoadedRun, TorchPredictor
+
+
+def check_due(stop: StopConfig, progress: Progress) -> bool:
+    """A check is due when the run crossed a multiple of ``stop.every`` not yet handled."""
+    return stop.finishes is not None and progress.global_step // stop.every > progress.stop_mark
+
+
+def stopped(stop: StopConfig, progress: Progress) -> bool:
+    return stop.finishes is not None and progress.stop_streak >= stop.checks
+
+
+def eval_success(
+    cfg: TrainConfig,
+    policy: ActorCritic,
+    obs_rms: RunningMeanStd,
+    track: Track,
+    interrupted: Callable[[], bool],
+) -> float | None:
+    """The deterministic policy's success rate over the check's episodes, or None if an
+    interrupt came first."""
+    stop = cfg.stop
+    run = LoadedRun(Path(), cfg, policy, obs_rms, {}, Path(), track)
+    predictor = TorchPredictor(run, seed=stop.seed)
+    env = cfg.make_env(track=track)
+    finished = 0
+    try:
+        with torch.no_grad():
+            for k in range(stop.episodes):
+                obs, info = env.reset(seed=stop.seed + k)
+                done = False
+                while not done:
+                    if interrupted():
+                        return None
+                    obs, _, terminated, truncated, info = env.step(predictor.predict(obs))
+                    done = terminated or truncated
+                finished += bool(info["lap_finished"])
+    finally:
+        env.close()
+    return finished / stop.episodes
+
+
+def check(
+    cfg: TrainConfig,
+    progress: Progress,
+    policy: ActorCritic,
+    obs_rms: RunningMeanStd,
+    track: Track,
+    interrupted: Callable[[], bool],
+) -> dict[str, Any]:
+    """Run the check if one is due; update ``progress``; return what the metrics record."""
+    stop = cfg.stop
+    if not check_due(stop, progress):
+        return {}
+    assert stop.finishes is not None
+    mark = progress.global_step // stop.every
+    if progress.finishes < stop.finishes:
+        progress.stop_mark = mark
+        return {}
+    success = eval_success(cfg, policy, obs_rms, track, interrupted)
+    if success is None:
+        return {}  # still due: the next iteration (or the resumed run) checks again
+    progress.stop_mark = mark
+    progress.stop_streak = progress.stop_streak + 1 if success >= stop.success else 0
+    return {"stop/eval_success": success, "stop/streak": progress.stop_streak}
