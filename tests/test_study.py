@@ -41,9 +41,10 @@ sets = {json.dumps(TINY)}
     return path
 
 
-def _study(cfg: Path, out: Path) -> dict:
+def _study(cfg: Path, out: Path, *args: str) -> dict:
     result = subprocess.run(
-        [sys.executable, "-m", "snnkart.cli", "study", str(cfg), "--out", str(out), "--jobs", "2"],
+        [sys.executable, "-m", "snnkart.cli", "study", str(cfg), "--out", str(out), "--jobs", "2",
+         *args],
         cwd=ROOT, capture_output=True, text=True, timeout=400,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr[-3000:]
@@ -54,7 +55,10 @@ def _study(cfg: Path, out: Path) -> dict:
 @pytest.mark.timeout(600)
 def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
     out = tmp_path / "study"
-    record = _study(_write_study(tmp_path / "study.toml"), out)
+    piece = _study(_write_study(tmp_path / "study.toml"), out, "--only", "*/grid-ann")
+    assert [r["name"] for r in piece["runs"]] == ["small_S-grid-ann-s1", "small_S-grid-ann-s2"]
+    assert "A piece of the study" in (out / "study.md").read_text()
+    record = _study(_write_study(tmp_path / "study.toml"), out)  # gathers the piece's runs
     runs = record["runs"]
     assert [r["name"] for r in runs] == [
         "small_S-grid-ann-s1", "small_S-grid-ann-s2", "small_S-grid-snn-s1", "small_S-grid-snn-s2"]  # fmt: skip
@@ -80,7 +84,7 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
         image = matplotlib.image.imread(out / "plots" / f"small_S-{key}.png")
         assert image.shape[0] > 200 and image.std() > 0.01  # drawn, not blank
         assert (out / "plots" / f"small_S-{key}.svg").read_text().lstrip().startswith("<?xml")
-    assert record["wall_clock"]["runs_reused"] == 0
+    assert record["wall_clock"]["runs_reused"] == 2 and record["only"] is None
 
     # run again: everything is reused, nothing evaluated again
     stamp = (out / "runs/small_S-grid-ann-s1/study-eval.json").stat().st_mtime
@@ -140,6 +144,8 @@ def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:
     bad.write_text('schema = "snnkart/study-config/v1"\ncells = {"grid-lstm" = []}\n')
     with pytest.raises(UsageError, match=r"'grid-lstm' is not a cell"):
         plan(load_study(bad))
+    with pytest.raises(UsageError, match=r"--only ring/\* matches no cell .*small_S/steer-snn"):
+        plan(load_study(ROOT / "studies" / "small_S.toml"), ["ring/*"])
     with pytest.raises(UsageError, match="cannot read the study config"):
         load_study(tmp_path / "missing.toml")
 

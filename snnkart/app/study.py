@@ -15,6 +15,7 @@ key differs is set aside (renamed) and trained again.
 
 from __future__ import annotations
 
+import fnmatch
 import hashlib
 import json
 import os
@@ -104,8 +105,9 @@ def track_label(track: str) -> str:
     return Path(track).stem if track.endswith(".toml") else track
 
 
-def plan(study: StudyConfig) -> list[Run]:
-    """Every run of the study, in a fixed order (cell by cell, seeds inside)."""
+def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
+    """Every run of the study, in a fixed order (cell by cell, seeds inside); with ``only``,
+    the runs of the cells whose ``track/env-policy`` matches one of these glob patterns."""
     known = {f"{e}-{p}" for e in study.envs for p in study.policies}
     known |= {f"{track_label(t)}/{c}" for t in study.tracks for c in list(known)}
     for cell in study.cells:
@@ -127,7 +129,16 @@ def plan(study: StudyConfig) -> list[Run]:
                     )  # fmt: skip
                     name = f"{track_label(track)}-{env}-{policy}-s{seed}"
                     runs.append(Run(track, env, policy, seed, RunSpec(name, config)))
-    return runs
+    return runs if only is None else _only(runs, only)
+
+
+def _only(runs: list[Run], patterns: list[str]) -> list[Run]:
+    labels = {id(r): f"{track_label(r.track)}/{r.env}-{r.policy}" for r in runs}
+    kept = [r for r in runs if any(fnmatch.fnmatchcase(labels[id(r)], p) for p in patterns)]
+    if not kept:
+        cells = ", ".join(dict.fromkeys(labels.values()))
+        raise UsageError(f"--only {' '.join(patterns)} matches no cell of this study ({cells})")
+    return kept
 
 
 def code_digest() -> str:
@@ -257,14 +268,15 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
 
 
 def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | None = None,
-              ray: bool = False) -> dict[str, Any]:  # fmt: skip
+              ray: bool = False, only: list[str] | None = None) -> dict[str, Any]:  # fmt: skip
     """Train, evaluate and summarise the study into ``out`` (``out/runs/<name>`` per run,
-    ``out/study.json``); returns the record."""
+    ``out/study.json``); returns the record. ``only``: see :func:`plan` (a piece of a study;
+    the record then covers that piece)."""
     from snnkart.app.study_summary import summarise
 
     out = Path(out)
     runs_dir = out / "runs"
-    runs = plan(study)
+    runs = plan(study, only)
     stale = _set_aside_stale(runs_dir, runs)
     start = time.perf_counter()
     specs = [r.spec for r in runs]
@@ -285,6 +297,7 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
     record = {
         "schema": RECORD_SCHEMA,
         "study": study.model_dump(mode="json", by_alias=True),
+        "only": only,
         "env_revision": ENV_REVISION,
         "code": code_digest()[:20],
         "wall_clock": {

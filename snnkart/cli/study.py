@@ -16,15 +16,20 @@ def study(
     out: Annotated[Path, typer.Option("--out", "-o")] = Path("runs/study"),
     jobs: Annotated[int | None, typer.Option(help="runs at a time (default: one per core)")] = None,
     ray: Annotated[bool, typer.Option(help="run the trainings as Ray Tune trials")] = False,
+    only: Annotated[
+        list[str] | None,
+        typer.Option(help="only the cells matching TRACK/ENV-POLICY globs, e.g. 'ring/*'"),
+    ] = None,
 ) -> None:
     """Train every track x env x policy cell for every seed (one torch thread per run,
     resumable: finished runs with the same config and training code are reused), evaluate each
-    run, and write OUT/study.json, OUT/study.md and OUT/plots/."""
+    run, and write OUT/study.json, OUT/study.md and OUT/plots/. Run a long study in pieces with
+    --only; the same command without it gathers every piece, reusing their runs."""
     from snnkart.app.study import load_study, run_study
     from snnkart.cli.console import ConsoleReporter
 
     def run() -> dict:
-        return run_study(load_study(config), out, ConsoleReporter(), jobs, ray)
+        return run_study(load_study(config), out, ConsoleReporter(), jobs, ray, only)
 
     record = guard(run, "every run saved its checkpoint; run the same command to resume")
     typer.echo((out / "study.md").read_text())

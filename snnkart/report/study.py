@@ -21,8 +21,10 @@ def _k(steps: float | None) -> str:
 
 def _steps(s: dict[str, Any]) -> str:
     if s["of"] == 1 or s["reached"] == 0:
-        return _k(s["median"])
-    return f"{_k(s['median'])} ({_k(s['min'])}–{_k(s['max'])})"
+        text = _k(s["median"])
+    else:
+        text = f"{_k(s['median'])} ({_k(s['min'])}–{_k(s['max'])})"
+    return text if s["reached"] == s["of"] else f"{text}, {s['reached']}/{s['of']} seeds"
 
 
 def _pct(s: dict[str, Any]) -> str:
@@ -46,19 +48,24 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
     n = study["finishes"]
     lines = [f"# Study: {study['name']}", "",
              f"{len(study['seeds'])} seeds per cell, at most {study['steps']:,} env steps per run. "
-             "Medians over seeds with (min–max); `>cap`: not reached within the cap. "
+             "Medians over seeds with (min–max); `>cap`: not reached within the cap; "
+             "\"k/n seeds\": only k of the n seeds got there. "
              f"\"{n} finishes\": the step at which the run's cumulative finished training episodes "
              f"reached {n}. Evaluation: {study['eval_episodes']} seeded episodes, ANNs in torch, "
              "SNNs exported to NIR on the numpy reference in fixed point. ✓/✗: better/worse than "
              "the original (one run per cell; shown for small_S at 300 finishes).", ""]  # fmt: skip
+    if record.get("only"):
+        lines += [f"A piece of the study: the cells matching `{' '.join(record['only'])}`.", ""]
     cells = record["cells"]
-    for track in study["tracks"]:
+    for track in _tracks(record):
         lines += [f"## {Path(track).stem}", "",
                   f"| env | ANN first finish | SNN first finish | ANN {n} finishes | "
                   f"SNN {n} finishes | SNN % of ANN | ANN eval | SNN eval |",
                   "|---|---|---|---|---|---|---|---|"]  # fmt: skip
         for env in study["envs"]:
             by = {c["policy"]: c for c in cells if c["track"] == track and c["env"] == env}
+            if not by:
+                continue
             # the original's numbers: its track and its mark of 300 finishes only
             comparable = Path(track).stem == "small_S" and n == 300
             lines += _rows(env, by, original.get(env) if comparable else None)
@@ -69,6 +76,11 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
               f"({w['runs_reused']} reused); {record['env_steps']:,} env steps in all. "
               f"Env revision {record['env_revision']}, training code {record['code']}.", ""]  # fmt: skip
     return "\n".join(lines)
+
+
+def _tracks(record: dict[str, Any]) -> list[str]:
+    """The study's tracks that have runs in this record (all, unless it is a piece)."""
+    return [t for t in record["study"]["tracks"] if any(r["track"] == t for r in record["runs"])]
 
 
 def _rows(env: str, by: dict[str, dict[str, Any]], orig: dict[str, float] | None) -> list[str]:
@@ -125,7 +137,7 @@ def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     study, runs, written = record["study"], record["runs"], []
-    for track in study["tracks"]:
+    for track in _tracks(record):
         for key, ylabel in (("finishes", "cumulative finished episodes"),
                             ("return", "mean episodic return")):  # fmt: skip
             fig, axes = _figure(4.2 * len(study["envs"]), 3.4, ncols=len(study["envs"]))
