@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 import pytest
 
 from snnkart.app.study import load_study, plan, steps_to
+from snnkart.app.study_eval import DEPLOY_DIR, median_seed
 from snnkart.app.study_summary import pct_of_ann, spread, summarise
 from snnkart.errors import UsageError
 from snnkart.report.study import _band
@@ -35,6 +36,7 @@ seeds = [1, 2]
 steps = {3 * BATCH}
 finishes = 1
 eval_episodes = 2
+deploy_episodes = 2
 sets = {json.dumps(TINY)}
 {cells}
 """)
@@ -75,6 +77,14 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
             evaluation = json.loads((run_dir / "study-eval.json").read_text())
         assert evaluation["summary"]["episodes"] == 2
         assert r["eval_success_rate"] == evaluation["summary"]["success_rate"]
+    (deployed,) = record["deployed"]  # the SNN cell's median seed on Lava, fixed point
+    snns = [r for r in runs if r["policy"] == "snn"]
+    assert deployed["run"] == median_seed(snns)["name"] and deployed["episodes"] == 2
+    result = json.loads((out / "runs" / deployed["run"] / DEPLOY_DIR / "deploy.json").read_text())
+    assert (result["backend"], result["precision"]) == ("lava-sim", "fixed")
+    assert result["parity"]["same_arithmetic_reference"] is not None
+    assert deployed["bit_exact"] is True and deployed["env_steps"] > 0
+    assert "| grid | small_S-grid-snn-s" in (out / "study.md").read_text()
     cells = {(c["env"], c["policy"]): c for c in record["cells"]}
     assert cells[("grid", "ann")]["env_steps"] == 2 * 3 * BATCH
     assert "snn_pct_of_ann" in cells[("grid", "snn")]
@@ -88,7 +98,10 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
 
     # run again: everything is reused, nothing evaluated again
     stamp = (out / "runs/small_S-grid-ann-s1/study-eval.json").stat().st_mtime
+    deploy_file = out / "runs" / deployed["run"] / DEPLOY_DIR / "deploy.json"
+    deploy_stamp = deploy_file.stat().st_mtime
     again = _study(_write_study(tmp_path / "study.toml"), out)
+    assert deploy_file.stat().st_mtime == deploy_stamp and again["deployed"] == [deployed]
     assert again["wall_clock"]["runs_reused"] == 4 and again["wall_clock"]["runs_set_aside"] == 0
     assert (out / "runs/small_S-grid-ann-s1/study-eval.json").stat().st_mtime == stamp
     assert [r["eval_success_rate"] for r in again["runs"]] == [r["eval_success_rate"] for r in runs]
@@ -131,6 +144,16 @@ def test_spreads_and_the_snn_against_the_ann_by_hand() -> None:
     assert steps_to(3, {"steps": [10, 20, 30], "finishes": [0, 3, 5]}) == 20
     assert steps_to(9, {"steps": [10, 20, 30], "finishes": [0, 3, 5]}) is None
     assert not math.isnan(cells["ann"]["train_seconds"]["median"])
+
+
+def test_the_median_seed_by_hand() -> None:
+    def run(seed: int, steps: int | None) -> dict:
+        return {"seed": seed, "steps_to_finishes": steps, "name": f"s{seed}"}
+
+    cell = [run(1, 300), run(2, None), run(3, 100), run(4, 200), run(5, None)]
+    assert median_seed(cell)["seed"] == 1  # 100, 200, [300], never, never
+    assert median_seed(cell[:4])["seed"] == 4  # 100, [200], 300, never
+    assert median_seed([run(2, 100), run(1, 100)])["seed"] == 1
 
 
 def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:

@@ -19,7 +19,6 @@ import fnmatch
 import hashlib
 import json
 import os
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -30,6 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from snnkart.app.launch import LocalPool, RunResult, RunSpec
 from snnkart.app.reporter import Reporter
+from snnkart.app.study_eval import deploy_median_seeds, evaluate
 from snnkart.envs.spec import ENV_REVISION
 from snnkart.envs.tracks import load_track
 from snnkart.errors import UsageError
@@ -61,6 +61,9 @@ class StudyConfig(BaseModel):
     steps: int = Field(300_000, ge=1, description="env steps per run (the cap)")
     finishes: int = Field(300, ge=1, description="report the step at this many finishes")
     eval_episodes: int = Field(50, ge=1)
+    deploy_episodes: int = Field(
+        5, ge=0, description="episodes of each SNN cell's median seed on lava-sim (0: none)"
+    )
     eval_seed: int = 10_000
     sets: list[str] = Field(default_factory=list, description="KEY=VALUE for every run")
     cells: dict[str, list[str]] = Field(
@@ -180,54 +183,6 @@ def _set_aside_stale(runs_dir: Path, runs: list[Run]) -> int:
     return stale
 
 
-def _eval_target(run: Run, runs_dir: Path) -> tuple[list[str], Path]:
-    """The ``snnkart eval`` arguments for a run, and the file holding its summary."""
-    run_dir = runs_dir / run.spec.name
-    if run.policy == "snn":
-        out = run_dir / "study-eval-nir-ref-fixed"
-        args = ["--backend", "nir-ref", "--precision", "fixed", "--out", str(out)]
-        return args, out / "deploy.json"
-    out = run_dir / "study-eval.json"
-    return ["--out", str(out)], out
-
-
-def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
-             reporter: Reporter) -> dict[str, dict[str, Any]]:  # fmt: skip
-    """Each run's evaluation summary, evaluating (``jobs`` at a time) where none newer than
-    its checkpoint exists."""
-    todo = []
-    for run in runs:
-        args, summary = _eval_target(run, runs_dir)
-        checkpoint = runs_dir / run.spec.name / "checkpoint.pt"
-        if not summary.is_file() or summary.stat().st_mtime < checkpoint.stat().st_mtime:
-            todo.append((run, args))
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-    running: list[tuple[Run, subprocess.Popen[bytes]]] = []
-    with reporter.progress("evaluations", len(todo)) as task:
-        while todo or running:
-            while todo and len(running) < jobs:
-                run, args = todo.pop(0)
-                cmd = [sys.executable, "-m", "snnkart.cli", "eval", str(runs_dir / run.spec.name),
-                       "--episodes", str(study.eval_episodes), "--seed", str(study.eval_seed), *args]  # fmt: skip
-                running.append((run, subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
-                                                      stderr=subprocess.PIPE)))  # fmt: skip
-            for item in list(running):
-                code = item[1].poll()
-                if code is None:
-                    continue
-                running.remove(item)
-                if code != 0:
-                    err = item[1].stderr.read().decode(errors="replace") if item[1].stderr else ""
-                    raise UsageError(f"evaluating {item[0].spec.name} failed: {err[-500:]}")
-                task.advance()
-            time.sleep(0.1)
-    return {run.spec.name: _summary(_eval_target(run, runs_dir)[1]) for run in runs}
-
-
-def _summary(path: Path) -> dict[str, Any]:
-    return dict(json.loads(path.read_text())["summary"])
-
-
 def curve(run_dir: Path) -> dict[str, list[Any]]:
     """Per iteration: env steps, cumulative training finishes, mean episodic return."""
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()
@@ -294,6 +249,9 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
     evaluations = evaluate(runs, runs_dir, study, jobs or os.cpu_count() or 1, reporter)
     records = [run_record(run, res, runs_dir, study, evaluations[run.spec.name])
                for run, res in zip(runs, results, strict=True)]  # fmt: skip
+    deployed = (
+        deploy_median_seeds(records, runs_dir, study, reporter) if study.deploy_episodes else []
+    )
     record = {
         "schema": RECORD_SCHEMA,
         "study": study.model_dump(mode="json", by_alias=True),
@@ -309,6 +267,7 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
         },
         "env_steps": sum(r["steps"] for r in records),
         "cells": summarise(records, study),
+        "deployed": deployed,
         "runs": records,
     }
     write_json(out / "study.json", record)

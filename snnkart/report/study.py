@@ -69,13 +69,31 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
             # the original's numbers: its track and its mark of 300 finishes only
             comparable = Path(track).stem == "small_S" and n == 300
             lines += _rows(env, by, original.get(env) if comparable else None)
-        lines.append("")
+        lines += ["", *_deployed([d for d in record.get("deployed", []) if d["track"] == track])]
     w = record["wall_clock"]
     lines += [f"Training {w['train_seconds'] / 60:.1f} min and evaluation "
               f"{w['eval_seconds'] / 60:.1f} min of wall-clock for {w['runs']} runs "
               f"({w['runs_reused']} reused); {record['env_steps']:,} env steps in all. "
               f"Env revision {record['env_revision']}, training code {record['code']}.", ""]  # fmt: skip
     return "\n".join(lines)
+
+
+def _deployed(entries: list[dict[str, Any]]) -> list[str]:
+    """The median-seed SNNs on lava-sim beside their reference evaluation."""
+    if not entries:
+        return []
+    lines = ["Deployed: each env's median-seed SNN (by steps to the finishes mark) on lava-sim in "
+             "fixed point, checked step by step against the numpy reference of the same "
+             "arithmetic.", "",
+             "| env | run | lava-sim fixed | bit-exact with the reference | reference |",
+             "|---|---|---|---|---|"]  # fmt: skip
+    for d in entries:
+        exact = f"{'yes' if d['bit_exact'] else '**no**'} ({d['env_steps']:,} env steps)"
+        lines.append(f"| {d['env']} | {d['run']} | {100 * d['success_rate']:.0f} % "
+                     f"({d['episodes']} episodes) | {exact} | "
+                     f"{100 * d['reference_success_rate']:.0f} % ({d['reference_episodes']} "
+                     "episodes) |")  # fmt: skip
+    return [*lines, ""]
 
 
 def _tracks(record: dict[str, Any]) -> list[str]:

@@ -1,0 +1,123 @@
+"""A study's evaluations: every run (ANNs in torch, SNNs exported to NIR on the numpy
+reference in fixed point), and each SNN cell's median seed deployed on Lava's simulated Loihi
+in fixed point, checked step by step against the reference of the same arithmetic."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from snnkart.app.reporter import Reporter
+from snnkart.errors import UsageError
+
+if TYPE_CHECKING:
+    from snnkart.app.study import Run, StudyConfig
+
+DEPLOY_DIR = "study-deploy-lava-sim-fixed"
+
+
+def _eval_target(run: Run, runs_dir: Path) -> tuple[list[str], Path]:
+    """The ``snnkart eval`` arguments for a run, and the file holding its summary."""
+    run_dir = runs_dir / run.spec.name
+    if run.policy == "snn":
+        out = run_dir / "study-eval-nir-ref-fixed"
+        args = ["--backend", "nir-ref", "--precision", "fixed", "--out", str(out)]
+        return args, out / "deploy.json"
+    out = run_dir / "study-eval.json"
+    return ["--out", str(out)], out
+
+
+def _stale(result: Path, checkpoint: Path) -> bool:
+    return not result.is_file() or result.stat().st_mtime < checkpoint.stat().st_mtime
+
+
+def _run_all(cmds: list[tuple[str, list[str]]], jobs: int, reporter: Reporter, what: str) -> None:
+    """Run ``snnkart`` commands (name, args), ``jobs`` at a time, one thread each."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    todo = list(cmds)
+    running: list[tuple[str, subprocess.Popen[bytes]]] = []
+    with reporter.progress(what, len(todo)) as task:
+        while todo or running:
+            while todo and len(running) < jobs:
+                name, args = todo.pop(0)
+                proc = subprocess.Popen([sys.executable, "-m", "snnkart.cli", *args], env=env,
+                                        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+                running.append((name, proc))
+            for name, proc in list(running):
+                code = proc.poll()
+                if code is None:
+                    continue
+                running.remove((name, proc))
+                if code != 0:
+                    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+                    raise UsageError(f"{what}: {name} failed: {err[-500:]}")
+                task.advance()
+            time.sleep(0.1)
+
+
+def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
+             reporter: Reporter) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """Each run's evaluation summary, evaluating (``jobs`` at a time) where none newer than
+    its checkpoint exists."""
+    cmds = []
+    for run in runs:
+        args, summary = _eval_target(run, runs_dir)
+        if _stale(summary, runs_dir / run.spec.name / "checkpoint.pt"):
+            cmds.append((run.spec.name, ["eval", str(runs_dir / run.spec.name),
+                                         "--episodes", str(study.eval_episodes),
+                                         "--seed", str(study.eval_seed), *args]))  # fmt: skip
+    _run_all(cmds, jobs, reporter, "evaluations")
+    return {run.spec.name: _summary(_eval_target(run, runs_dir)[1]) for run in runs}
+
+
+def median_seed(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """The run in the middle of a cell's seeds by steps to N finishes (never = last; ties by
+    seed); of an even count, the earlier of the middle two."""
+    order = sorted(records, key=lambda r: (r["steps_to_finishes"] is None,
+                                           r["steps_to_finishes"] or 0, r["seed"]))  # fmt: skip
+    return order[(len(order) - 1) // 2]
+
+
+def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: StudyConfig,
+                        reporter: Reporter) -> list[dict[str, Any]]:  # fmt: skip
+    """Each SNN cell's median-seed run on lava-sim in fixed point for
+    ``study.deploy_episodes`` episodes (the evaluation's first seeds), one at a time (Lava
+    runs its own processes); what each deployment gave and whether it was bit-exact."""
+    cells: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in records:
+        if r["policy"] == "snn":
+            cells.setdefault((r["track"], r["env"]), []).append(r)
+    chosen = [median_seed(rs) for rs in cells.values()]
+    cmds = []
+    for r in chosen:
+        run_dir = runs_dir / r["name"]
+        if _stale(run_dir / DEPLOY_DIR / "deploy.json", run_dir / "checkpoint.pt"):
+            cmds.append((r["name"], ["eval", str(run_dir), "--backend", "lava-sim",
+                                     "--precision", "fixed", "--episodes",
+                                     str(study.deploy_episodes), "--seed", str(study.eval_seed),
+                                     "--out", str(run_dir / DEPLOY_DIR)]))  # fmt: skip
+    _run_all(cmds, 1, reporter, "deployments on lava-sim")
+    out = []
+    for r in chosen:
+        result = json.loads((runs_dir / r["name"] / DEPLOY_DIR / "deploy.json").read_text())
+        parity = result["parity"]
+        out.append({
+            "track": r["track"], "env": r["env"], "run": r["name"], "seed": r["seed"],
+            "backend": "lava-sim fixed", "episodes": result["summary"]["episodes"],
+            "success_rate": result["summary"]["success_rate"],
+            "bit_exact": parity["same_arithmetic_mismatched_windows"] == 0
+            and parity["same_arithmetic_mismatched_actions"] == 0,
+            "env_steps": parity["env_steps"],
+            "reference_success_rate": r["eval_success_rate"],
+            "reference_episodes": study.eval_episodes,
+        })  # fmt: skip
+    return out
+
+
+def _summary(path: Path) -> dict[str, Any]:
+    return dict(json.loads(path.read_text())["summary"])
