@@ -192,3 +192,30 @@ def test_a_run_stopped_early_drops_out_of_the_band_where_it_ended() -> None:
     assert list(solid.get_xdata()) == [1, 2] and list(solid.get_ydata()) == [1, 11]
     assert list(dotted.get_xdata()) == [2, 3, 4] and list(dotted.get_ydata()) == [11, 20, 30]
     plt.close(fig)
+
+
+@pytest.mark.timeout(600)
+def test_an_ablation_trains_every_variant_and_reports_its_spikes(tmp_path: Path) -> None:
+    cfg = _write_study(tmp_path / "ablation.toml",
+                       'variants = { "T2" = [], "T4" = ["snn.num_steps=4"] }')  # fmt: skip
+    text = cfg.read_text().replace('policies = ["ann", "snn"]', 'policies = ["snn"]')
+    cfg.write_text(text.replace("seeds = [1, 2]", "seeds = [1]").replace(
+        "deploy_episodes = 2", "deploy_episodes = 0"))  # fmt: skip
+    out = tmp_path / "ablation"
+    record = _study(cfg, out)
+    assert [r["name"] for r in record["runs"]] == [
+        "small_S-grid-snn-T2-s1",
+        "small_S-grid-snn-T4-s1",
+    ]
+    assert "num_steps = 4" in (out / "runs/small_S-grid-snn-T4-s1/config.toml").read_text()
+    spikes = {c["variant"]: c["eval_spikes_per_step"]["median"] for c in record["cells"]}
+    for r in record["runs"]:  # spikes per inference, from the reference's counts
+        counts = json.loads((out / "runs" / r["name"] / "study-eval-nir-ref-fixed/deploy.json")
+                            .read_text())["counts"]  # fmt: skip
+        assert spikes[r["variant"]] == sum(counts["spikes"]) / counts["env_steps"]
+    text = (out / "study.md").read_text()
+    assert "| grid · T2 |" in text and "| grid · T4 |" in text and record["deployed"] == []
+    bad = tmp_path / "bad.toml"
+    bad.write_text('schema = "snnkart/study-config/v1"\nvariants = {"T 4" = []}\n')
+    with pytest.raises(UsageError, match="variant name 'T 4'"):
+        load_study(bad)

@@ -17,15 +17,17 @@ from __future__ import annotations
 
 import fnmatch
 import hashlib
+import itertools
 import json
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from snnkart.app.launch import LocalPool, RunResult, RunSpec
 from snnkart.app.reporter import Reporter
@@ -70,6 +72,18 @@ class StudyConfig(BaseModel):
         default_factory=dict,
         description='KEY=VALUE per cell: "env-policy" or "track/env-policy" -> settings',
     )
+    variants: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description="an ablation: every cell once per named variant (its KEY=VALUE settings)",
+    )
+
+    @field_validator("variants")
+    @classmethod
+    def _variant_names(cls, variants: dict[str, list[str]]) -> dict[str, list[str]]:
+        for name in variants:
+            if not re.fullmatch(r"[A-Za-z0-9_.]+", name):
+                raise ValueError(f"variant name {name!r}: use letters, digits, '_' and '.'")
+        return variants
 
 
 def load_study(path: Path) -> StudyConfig:
@@ -98,10 +112,13 @@ class Run:
     policy: str
     seed: int
     spec: RunSpec
+    variant: str = ""
 
     @property
-    def cell(self) -> tuple[str, str, str]:
-        return (self.track, self.env, self.policy)
+    def label(self) -> str:
+        """``TRACK/ENV-POLICY`` (``:VARIANT`` in an ablation), what ``--only`` matches."""
+        cell = f"{track_label(self.track)}/{self.env}-{self.policy}"
+        return f"{cell}:{self.variant}" if self.variant else cell
 
 
 def track_label(track: str) -> str:
@@ -118,28 +135,27 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
             raise UsageError(
                 f"cells: {cell!r} is not a cell of this study ({', '.join(sorted(known))})"
             )
+    variants = list(study.variants.items()) or [("", [])]
     runs = []
-    for track in study.tracks:
-        for env in study.envs:
-            for policy in study.policies:
-                cell_sets = [*study.cells.get(f"{env}-{policy}", []),
-                             *study.cells.get(f"{track_label(track)}/{env}-{policy}", [])]  # fmt: skip
-                for seed in study.seeds:
-                    config = load_config(
-                        overrides={"env": env, "policy": policy, "track": track, "seed": seed,
-                                   "total_steps": study.steps},
-                        sets=["run.tensorboard=false", *study.sets, *cell_sets],
-                    )  # fmt: skip
-                    name = f"{track_label(track)}-{env}-{policy}-s{seed}"
-                    runs.append(Run(track, env, policy, seed, RunSpec(name, config)))
+    for track, env, policy in itertools.product(study.tracks, study.envs, study.policies):
+        cell_sets = [*study.cells.get(f"{env}-{policy}", []),
+                     *study.cells.get(f"{track_label(track)}/{env}-{policy}", [])]  # fmt: skip
+        for (variant, variant_sets), seed in itertools.product(variants, study.seeds):
+            config = load_config(
+                overrides={"env": env, "policy": policy, "track": track, "seed": seed,
+                           "total_steps": study.steps},
+                sets=["run.tensorboard=false", *study.sets, *cell_sets, *variant_sets],
+            )  # fmt: skip
+            name = "-".join([track_label(track), env, policy, *([variant] if variant else []),
+                             f"s{seed}"])  # fmt: skip
+            runs.append(Run(track, env, policy, seed, RunSpec(name, config), variant))
     return runs if only is None else _only(runs, only)
 
 
 def _only(runs: list[Run], patterns: list[str]) -> list[Run]:
-    labels = {id(r): f"{track_label(r.track)}/{r.env}-{r.policy}" for r in runs}
-    kept = [r for r in runs if any(fnmatch.fnmatchcase(labels[id(r)], p) for p in patterns)]
+    kept = [r for r in runs if any(fnmatch.fnmatchcase(r.label, p) for p in patterns)]
     if not kept:
-        cells = ", ".join(dict.fromkeys(labels.values()))
+        cells = ", ".join(dict.fromkeys(r.label for r in runs))
         raise UsageError(f"--only {' '.join(patterns)} matches no cell of this study ({cells})")
     return kept
 
@@ -209,6 +225,7 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
     c = curve(runs_dir / run.spec.name)
     return {
         "name": run.spec.name, "track": run.track, "env": run.env, "policy": run.policy,
+        "variant": run.variant,
         "seed": run.seed, "status": result.status, "steps": result.global_step,
         "stopped_early": result.stopped_early,
         "first_finish_step": result.first_finish_step,
@@ -218,7 +235,8 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
         "eval_backend": "nir-ref fixed" if run.policy == "snn" else "torch",
         "eval_success_rate": evaluation["success_rate"],
         "eval_mean_return": evaluation["mean_return"], "eval_crashes": evaluation["crashes"],
-        "eval_stood_still": evaluation.get("stood_still"), "curve": c,
+        "eval_stood_still": evaluation.get("stood_still"),
+        "eval_spikes_per_step": evaluation.get("spikes_per_step"), "curve": c,
     }  # fmt: skip
 
 

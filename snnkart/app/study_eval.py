@@ -88,10 +88,10 @@ def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: St
     """Each SNN cell's median-seed run on lava-sim in fixed point for
     ``study.deploy_episodes`` episodes (the evaluation's first seeds), one at a time (Lava
     runs its own processes); what each deployment gave and whether it was bit-exact."""
-    cells: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    cells: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for r in records:
         if r["policy"] == "snn":
-            cells.setdefault((r["track"], r["env"]), []).append(r)
+            cells.setdefault((r["track"], r["env"], r["variant"]), []).append(r)
     chosen = [median_seed(rs) for rs in cells.values()]
     cmds = []
     for r in chosen:
@@ -107,7 +107,8 @@ def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: St
         result = json.loads((runs_dir / r["name"] / DEPLOY_DIR / "deploy.json").read_text())
         parity = result["parity"]
         out.append({
-            "track": r["track"], "env": r["env"], "run": r["name"], "seed": r["seed"],
+            "track": r["track"], "env": r["env"], "variant": r["variant"], "run": r["name"],
+            "seed": r["seed"],
             "backend": "lava-sim fixed", "episodes": result["summary"]["episodes"],
             "success_rate": result["summary"]["success_rate"],
             "bit_exact": parity["same_arithmetic_mismatched_windows"] == 0
@@ -120,4 +121,11 @@ def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: St
 
 
 def _summary(path: Path) -> dict[str, Any]:
-    return dict(json.loads(path.read_text())["summary"])
+    """An evaluation's summary; for an SNN also its spikes per env step (one inference: T
+    steps of every spiking layer, from the reference's counts)."""
+    data = json.loads(path.read_text())
+    summary = dict(data["summary"])
+    counts = data.get("counts")
+    if counts and counts.get("env_steps"):
+        summary["spikes_per_step"] = sum(counts["spikes"]) / counts["env_steps"]
+    return summary

@@ -37,24 +37,29 @@ def spread(values: list[float | None]) -> dict[str, Any]:
 
 
 def summarise(records: list[dict[str, Any]], study: Any) -> list[dict[str, Any]]:
-    """One entry per cell (track, env, policy) and one comparison per (track, env)."""
-    cells: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    """One entry per cell (track, env, policy, variant), with the SNN against the ANN of the
+    same track, env and variant."""
+    cells: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
     for r in records:
-        cells.setdefault((r["track"], r["env"], r["policy"]), []).append(r)
+        cells.setdefault((r["track"], r["env"], r["policy"], r.get("variant", "")), []).append(r)
     out = []
-    for (track, env, policy), rs in cells.items():
+    for (track, env, policy, variant), rs in cells.items():
+        spikes = [r.get("eval_spikes_per_step") for r in rs]
         out.append({
-            "track": track, "env": env, "policy": policy, "seeds": [r["seed"] for r in rs],
+            "track": track, "env": env, "policy": policy, "variant": variant,
+            "seeds": [r["seed"] for r in rs],
             "first_finish_step": spread([r["first_finish_step"] for r in rs]),
             "steps_to_finishes": spread([r["steps_to_finishes"] for r in rs]),
             "eval_success_rate": spread([r["eval_success_rate"] for r in rs]),
+            "eval_spikes_per_step": spread(spikes) if None not in spikes else None,
             "train_seconds": spread([r["train_seconds"] for r in rs]),
             "env_steps": sum(r["steps"] for r in rs),
         })  # fmt: skip
     for entry in out:
         if entry["policy"] == "snn":
-            ann = next((e for e in out if e["policy"] == "ann" and e["track"] == entry["track"]
-                        and e["env"] == entry["env"]), None)  # fmt: skip
+            same = ("track", "env", "variant")
+            ann = next((e for e in out if e["policy"] == "ann"
+                        and all(e[k] == entry[k] for k in same)), None)  # fmt: skip
             entry["snn_pct_of_ann"] = pct_of_ann(ann, entry)
     return out
 

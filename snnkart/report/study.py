@@ -34,6 +34,14 @@ def _pct(s: dict[str, Any]) -> str:
     return f"{p(s['median'])} ({p(s['min'])}–{p(s['max'])})" if s["of"] > 1 else p(s["median"])
 
 
+def _count(s: dict[str, Any] | None) -> str:
+    if s is None or s["median"] is None:
+        return "-"
+    if s["of"] == 1:
+        return f"{s['median']:.0f}"
+    return f"{s['median']:.0f} ({s['min']:.0f}–{s['max']:.0f})"
+
+
 def _vs(ours: float | None, theirs: float | None, lower_is_better: bool = True) -> str:
     if theirs is None:
         return ""
@@ -60,15 +68,17 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
     for track in _tracks(record):
         lines += [f"## {Path(track).stem}", "",
                   f"| env | ANN first finish | SNN first finish | ANN {n} finishes | "
-                  f"SNN {n} finishes | SNN % of ANN | ANN eval | SNN eval |",
-                  "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+                  f"SNN {n} finishes | SNN % of ANN | ANN eval | SNN eval | SNN spikes/step |",
+                  "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
         for env in study["envs"]:
-            by = {c["policy"]: c for c in cells if c["track"] == track and c["env"] == env}
-            if not by:
-                continue
             # the original's numbers: its track and its mark of 300 finishes only
             comparable = Path(track).stem == "small_S" and n == 300
-            lines += _rows(env, by, original.get(env) if comparable else None)
+            for variant in list(study.get("variants") or {}) or [""]:
+                by = {c["policy"]: c for c in cells
+                      if (c["track"], c["env"], c.get("variant", "")) == (track, env, variant)}  # fmt: skip
+                if by:
+                    label = f"{env} · {variant}" if variant else env
+                    lines += _rows(label, by, original.get(env) if comparable else None)
         lines += ["", *_deployed([d for d in record.get("deployed", []) if d["track"] == track])]
     w = record["wall_clock"]
     lines += [f"Training {w['train_seconds'] / 60:.1f} min and evaluation "
@@ -89,7 +99,8 @@ def _deployed(entries: list[dict[str, Any]]) -> list[str]:
              "|---|---|---|---|---|"]  # fmt: skip
     for d in entries:
         exact = f"{'yes' if d['bit_exact'] else '**no**'} ({d['env_steps']:,} env steps)"
-        lines.append(f"| {d['env']} | {d['run']} | {100 * d['success_rate']:.0f} % "
+        env = f"{d['env']} · {d['variant']}" if d.get("variant") else d["env"]
+        lines.append(f"| {env} | {d['run']} | {100 * d['success_rate']:.0f} % "
                      f"({d['episodes']} episodes) | {exact} | "
                      f"{100 * d['reference_success_rate']:.0f} % ({d['reference_episodes']} "
                      "episodes) |")  # fmt: skip
@@ -118,12 +129,13 @@ def _rows(env: str, by: dict[str, dict[str, Any]], orig: dict[str, float] | None
            cell("snn", "first_finish_step", "snn_first"),
            cell("ann", "steps_to_finishes", "ann_300"), cell("snn", "steps_to_finishes", "snn_300"),
            pct_text, _pct(by["ann"]["eval_success_rate"]) if "ann" in by else "-",
-           _pct(by["snn"]["eval_success_rate"]) if "snn" in by else "-"]  # fmt: skip
+           _pct(by["snn"]["eval_success_rate"]) if "snn" in by else "-",
+           _count(snn.get("eval_spikes_per_step"))]  # fmt: skip
     lines = ["| " + " | ".join(row) + " |"]
     if orig:
         lines.append(f"| *original* | {_k(orig['ann_first'])} | {_k(orig['snn_first'])} | "
                      f"{_k(orig['ann_300'])} | {_k(orig['snn_300'])} | "
-                     f"{orig['snn_pct_of_ann']:.1f} % | | |")  # fmt: skip
+                     f"{orig['snn_pct_of_ann']:.1f} % | | | |")  # fmt: skip
     return lines
 
 
@@ -149,6 +161,16 @@ def _band(ax: Any, runs: list[dict[str, Any]], key: str, colour: str, label: str
     ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")
 
 
+def _cell(r: dict[str, Any]) -> tuple[str, str, str, str]:
+    return (r["track"], r["env"], r["policy"], r.get("variant", ""))
+
+
+def _groups(study: dict[str, Any]) -> list[tuple[str, str]]:
+    """(policy, variant) of every band in a panel; an ablation colours them by variant."""
+    variants = list(study.get("variants") or {}) or [""]
+    return [(p, v) for p in study["policies"] for v in variants]
+
+
 def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
     """Per track: cumulative finishes and mean episodic return against steps, one panel per
     env; PNG and SVG. Returns the files written."""
@@ -160,14 +182,12 @@ def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
                             ("return", "mean episodic return")):  # fmt: skip
             fig, axes = _figure(4.2 * len(study["envs"]), 3.4, ncols=len(study["envs"]))
             for ax, env in zip(axes[0], study["envs"], strict=True):
-                for policy in study["policies"]:
-                    rs = [
-                        r
-                        for r in runs
-                        if (r["track"], r["env"], r["policy"]) == (track, env, policy)
-                    ]
+                for k, (policy, variant) in enumerate(_groups(study)):
+                    cell = (track, env, policy, variant)
+                    rs = [r for r in runs if _cell(r) == cell]
                     if rs:
-                        _band(ax, rs, key, COLOURS[policy], policy.upper())
+                        colour = COLOURS[policy] if not variant else f"C{k % 10}"
+                        _band(ax, rs, key, colour, f"{policy.upper()} {variant}".strip())
                 if key == "finishes":
                     ax.axhline(study["finishes"], color="grey", lw=0.8, ls=":")
                 ax.set_title(f"{env} / {Path(track).stem}")
