@@ -18,7 +18,9 @@ def study(
     ray: Annotated[bool, typer.Option(help="run the trainings as Ray Tune trials")] = False,
     only: Annotated[
         list[str] | None,
-        typer.Option(help="only the cells matching TRACK/ENV-POLICY[:VARIANT] globs, e.g. 'ring/*'"),
+        typer.Option(
+            help="only the cells matching TRACK/ENV-POLICY[:VARIANT] globs, e.g. 'ring/*'"
+        ),
     ] = None,
 ) -> None:
     """Train every track x env x policy cell for every seed (one torch thread per run,
