@@ -52,8 +52,12 @@ RUNS = {
     "steer": ("steer", "snn", "discrete"),
     "steer-continuous": ("steer", "snn", "continuous"),
     "steer-rate": ("steer", "snn", "discrete"),
+    "steer-population": ("steer", "snn", "discrete"),
 }
-RUN_SETS = {"steer-rate": ["snn.encoding=rate"]}  # input spikes drawn on the host (PCG64)
+RUN_SETS = {
+    "steer-rate": ["snn.encoding=rate"],  # input spikes drawn on the host (PCG64)
+    "steer-population": ["snn.encoding=population"],  # Gaussian receptive fields on the host
+}
 TORCH_RUNS = ["steer", "steer-continuous"]
 PARITY_STEPS = 300
 TORCH_STEPS = 200
@@ -161,6 +165,7 @@ def test_split_window_on_a_hand_built_raster() -> None:
         ("steer-continuous", "float"),
         ("steer-rate", "fixed"),
         ("steer-rate", "float"),
+        ("steer-population", "fixed"),
     ],
 )
 def test_lava_is_bit_exact_with_the_same_arithmetic_reference(

@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 
-from snnkart.energy.counts import AnnCounts, SnnCounts
+from snnkart.energy.counts import AnnCounts, Network, SnnCounts, host_ops
 from snnkart.energy.pricing import Comparison, ann_terms, snn_terms, total
 from snnkart.energy.profiles import BUILTIN, load_profile, parse_profile
 from snnkart.errors import ProfileError
@@ -444,3 +444,18 @@ def test_the_side_panel_shows_the_driving_policys_layer_activity(deployed: Path)
         env.close()
     assert len(rates) == 2 and 0 < min(rates) < 1
     assert (shown != without).any(axis=2).sum() > 500  # the bars and their labels
+
+
+def test_population_encoding_host_ops_count_every_receptive_field() -> None:
+    """The host's work of a population-coded input: per observation value the scaling, per
+    receptive field the distance, its square and the exp, then the first layer's MACs on all
+    fields; not the normalisation the current encoding does instead."""
+    n_obs, fields, n1 = 21, 8, 64
+    net = Network(n_in=n_obs * fields, sizes=(n1, 64), n_out=5, num_steps=8,
+                  encoding="population", population=fields)  # fmt: skip
+    ops = {op.what: (op.op, op.count) for op in host_ops(net)}
+    assert ops["population encoding: (obs - low) / (high - low)"] == ("mult", n_obs)
+    assert ops["population encoding: x01 - centre"] == ("add", n_obs * fields)
+    assert ops["population encoding: x (P - 1), square, x -1/2"] == ("mult", 3 * n_obs * fields)
+    assert ops["first layer: W1 z, once per env step"] == ("mac", n_obs * fields * n1)
+    assert not any(name.startswith("normalisation") for name in ops)

@@ -23,10 +23,12 @@ from typer.testing import CliRunner
 
 from snnkart.backends.reference import NIRFileError, NIRReference
 from snnkart.cli import app
+from snnkart.contract.encoding import population
 from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, ManifestError, manifest_path
 from snnkart.envs.spec import spec_hash
 from snnkart.export.nir_export import NIR_DT, ExportError, check_exportable, export_nir
-from snnkart.rl.policies import SNNPolicy
+from snnkart.rl.config import load_config
+from snnkart.rl.policies import SNNPolicy, policy_for
 from snnkart.rl.trained import LoadedRun, TorchPredictor, load_run
 
 RUNS = {
@@ -469,6 +471,48 @@ def test_rate_encoding_draws_the_same_spikes_in_torch_and_the_reference(tmp_path
         env.close()
     assert same >= 0.999 * 300, f"{same} of 300 actions agree"
     assert differs_with_other_seed > 250  # the seed matters: the spikes are really random
+
+
+def test_population_code_by_hand_and_in_torch() -> None:
+    low, high = np.array([0.0, -2.0]), np.array([1.0, 2.0])
+    a = population(np.array([0.5, 2.0]), low, high, 5)  # fields at 0, .25, .5, .75, 1
+    g = np.exp(-0.5 * np.array([4.0, 1.0, 0.0, 1.0, 4.0]))  # distances 2, 1, 0, 1, 2 widths
+    np.testing.assert_allclose(a[:5], g, rtol=1e-6)  # 0.5 is the middle field's centre
+    last = np.exp(-0.5 * np.array([16.0, 9.0, 4.0, 1.0, 0.0]))  # 2.0 = high: the last centre
+    np.testing.assert_allclose(a[5:], last, rtol=1e-6)
+    assert a.dtype == np.float32 and a.shape == (10,)
+    cfg = load_config(overrides={"env": "steer", "policy": "snn"},
+                      sets=["snn.encoding=population", "snn.population=5"])  # fmt: skip
+    env = cfg.make_env()
+    try:
+        policy = policy_for(cfg, env.unwrapped)
+        space = env.observation_space
+    finally:
+        env.close()
+    assert isinstance(policy, SNNPolicy)
+    assert policy.snn.fcs[0].in_features == 5 * space.shape[0]
+    obs = np.random.default_rng(0).uniform(space.low, space.high, (64, space.shape[0]))
+    raw = torch.from_numpy(obs.astype(np.float32))
+    ours = policy.actor_input(raw, raw).numpy()
+    contract = population(obs.astype(np.float32), space.low, space.high, 5)
+    np.testing.assert_allclose(ours, contract, rtol=0, atol=1e-6)
+
+
+def test_population_encoding_exports_and_runs_like_torch(tmp_path: Path) -> None:
+    train_tiny(tmp_path / "pop", "steer", "snn", total_steps=256,
+               extra_sets=["snn.encoding=population", "snn.population=6"])  # fmt: skip
+    run = load_run(tmp_path / "pop")
+    nir_path, mpath = export_nir(run, tmp_path / "pop.nir")
+    manifest = Manifest.read(mpath)
+    assert manifest.encoding == "population" and manifest.population == 6
+    assert manifest.input_size == 6 * manifest.obs_dim
+    assert nir.read(nir_path).nodes["0"].weight.shape[1] == manifest.input_size
+    steps, mismatches, readout_mismatches, max_diff = _closed_loop(run, NIRReference(nir_path), 300)
+    assert mismatches <= 0.001 * steps and readout_mismatches <= 0.001 * steps, max_diff
+    data = json.loads(mpath.read_text())
+    data["population"] = None
+    with pytest.raises(ManifestError, match="population"):
+        Manifest.from_json(json.dumps(data))
 
 
 def test_manifest_is_mirrored_into_the_nir_metadata(exported: dict[str, Path]) -> None:

@@ -58,7 +58,11 @@ class HostCodec:
         return encoding.normalise(obs, self.mean, self.std, self.manifest.obs_clip)
 
     def _input(self, obs: np.ndarray) -> np.ndarray:
-        """The first layer's input: ``[n_in]`` (current encoding) or ``[T, n_in]`` spikes."""
+        """The first layer's input: ``[n_in]`` (current or population encoding) or
+        ``[T, n_in]`` spikes (rate)."""
+        if self.manifest.encoding == "population":
+            assert self.manifest.population is not None
+            return encoding.population(obs, self.low, self.high, self.manifest.population)
         if self.manifest.encoding == "rate":
             p = encoding.rate_probabilities(obs, self.low, self.high)
             spikes = encoding.rate_spikes(self.rng, p, self.T)

@@ -278,10 +278,11 @@ def load_chain(path: str | Path) -> tuple[ChainNetwork, Manifest]:
         chain = chain_from_graph(graph, manifest.nir_dt)
     except UnsupportedGraphError as exc:
         raise NIRFileError(f"{path}: {exc}") from exc
-    if chain.n_in != manifest.obs_dim:
+    if chain.n_in != manifest.input_size:
+        fields = f" x {manifest.population} receptive fields" if manifest.population else ""
         raise NIRFileError(
             f"{path}: the graph takes {chain.n_in} inputs but the manifest's observation has "
-            f"{manifest.obs_dim}"
+            f"{manifest.obs_dim}{fields}"
         )
     if len(chain.layers) != len(manifest.layers):
         raise NIRFileError(

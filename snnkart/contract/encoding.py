@@ -7,6 +7,11 @@
   ``p = clip((obs - low) / (high - low), 0, 1)`` (float32) and ``u = rng.random((T, n_in))``
   from ``numpy.random.Generator(PCG64(seed))``, seeded once per predictor and drawn once per
   env step (:data:`RATE_RNG`, recorded in the manifest).
+- Population encoding: every observation value, scaled to [0, 1] as for the rate encoding,
+  drives ``P`` neurons with Gaussian receptive fields centred at ``j / (P - 1)`` with width
+  ``1 / (P - 1)``: ``a[i P + j] = exp(-((x01[i] - j / (P - 1)) (P - 1))^2 / 2)`` in float32
+  (:func:`population`); ``a`` is the first layer's input, held for the T steps like the
+  current encoding's ``z``.
 - Readout: ``out = W_r (n / T) + b_r`` in float32 from the last layer's spike counts ``n``;
   discrete actions take the argmax, continuous ones are clipped to [-1, 1].
 """
@@ -53,6 +58,15 @@ def rate_probabilities(obs: np.ndarray, low: np.ndarray, high: np.ndarray) -> np
 def rate_spikes(rng: np.random.Generator, p: np.ndarray, num_steps: int) -> np.ndarray:
     """Input spike trains ``[T, n_in]`` (float32 0/1) for probabilities ``p``."""
     return (rng.random((num_steps, p.shape[-1])) < p).astype(np.float32)
+
+
+def population(obs: np.ndarray, low: np.ndarray, high: np.ndarray, size: int) -> np.ndarray:
+    """The population encoding's input ``[..., n_obs * size]`` (float32; see the module)."""
+    x = rate_probabilities(obs, low, high)
+    centres = np.linspace(0.0, 1.0, size, dtype=np.float32)
+    d = (x[..., :, None] - centres) * np.float32(size - 1)
+    a = np.exp(np.float32(-0.5) * d * d)
+    return a.reshape(*x.shape[:-1], -1).astype(np.float32)
 
 
 def readout(

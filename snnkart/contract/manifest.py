@@ -22,7 +22,7 @@ MANIFEST_SCHEMA = "snnkart/manifest/v2"
 """v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests still
 load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
 READABLE_SCHEMAS = ("snnkart/manifest/v1", MANIFEST_SCHEMA)
-ENCODINGS = ("current", "rate")
+ENCODINGS = ("current", "rate", "population")
 ACTION_MODES = ("discrete", "continuous")
 
 
@@ -43,7 +43,7 @@ class Manifest:
     nir_dt: float  # the dt of the NIR time constants: tau = dt / (1 - beta), r = tau / dt
     num_steps: int  # T SNN steps per env step; membranes reset to 0 before each env step
     layers: tuple[LayerSpec, ...]
-    encoding: str  # "current" | "rate"
+    encoding: str  # "current" | "rate" | "population"
     obs_mean: tuple[float, ...]
     obs_std: tuple[float, ...]  # sqrt(var + eps), divided by
     obs_clip: float
@@ -56,6 +56,7 @@ class Manifest:
     training: dict[str, Any] = field(default_factory=dict)
     encoding_rng: str | None = None  # rate encoding: how every backend draws the input spikes
     track: dict[str, str] | None = None  # the trained track (v2; None in v1 manifests)
+    population: int | None = None  # population encoding: receptive fields per observation
 
     def __post_init__(self) -> None:
         """A manifest is valid from construction on, however it was made."""
@@ -67,6 +68,14 @@ class Manifest:
             raise ManifestError(f"a {MANIFEST_SCHEMA} manifest embeds its track")
         if self.encoding not in ENCODINGS:
             raise ManifestError(f"unknown encoding {self.encoding!r}; choose one of {ENCODINGS}")
+        if (self.encoding == "population") != (self.population is not None) or (
+            self.population is not None and self.population < 2
+        ):
+            raise ManifestError(
+                "population (receptive fields per observation, >= 2) is given exactly when the "
+                f"encoding is 'population' (encoding {self.encoding!r}, population "
+                f"{self.population!r})"
+            )
         if self.action_mode not in ACTION_MODES:
             raise ManifestError(
                 f"unknown action_mode {self.action_mode!r}; choose one of {ACTION_MODES}"
@@ -82,6 +91,11 @@ class Manifest:
     @property
     def obs_dim(self) -> int:
         return len(self.obs_mean)
+
+    @property
+    def input_size(self) -> int:
+        """The graph's input size: one per observation value, or ``population`` per value."""
+        return self.obs_dim * (self.population or 1)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=2) + "\n"

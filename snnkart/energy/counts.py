@@ -31,6 +31,8 @@ class Network:
     n_out: int
     num_steps: int
     encoding: str = "current"
+    population: int = 0
+    """Population encoding: receptive fields per observation value (``n_in`` is their sum)."""
     readout: bool = True
     input_scale: bool = False
     action_mode: str = "discrete"
@@ -49,6 +51,7 @@ class Network:
             n_out=int(net["n_out"]),
             num_steps=int(manifest["num_steps"]),
             encoding=str(manifest.get("encoding", "current")),
+            population=int(manifest.get("population") or 0),
             readout=bool(net.get("readout", True)),
             input_scale=bool(net.get("input_scale", False)),
             action_mode=str(manifest.get("action_mode", "discrete")),
@@ -99,9 +102,21 @@ def host_ops(net: Network, fixed_point: bool = False) -> list[HostOp]:
             HostOp("first layer: weight reads, dense upper bound", "weight_read", T * (n_in * n1 + n1)),
         ]  # fmt: skip
     else:
+        if net.population:
+            n_obs = n_in // net.population
+            ops += [
+                HostOp("population encoding: (obs - low) / (high - low), clipped", "add", 3 * n_obs),
+                HostOp("population encoding: (obs - low) / (high - low)", "mult", n_obs),
+                HostOp("population encoding: x01 - centre", "add", n_in),
+                HostOp("population encoding: x (P - 1), square, x -1/2", "mult", 3 * n_in),
+                HostOp("population encoding: exp, priced as one mult (a table lookup)", "mult", n_in),
+            ]  # fmt: skip
+        else:
+            ops += [
+                HostOp("normalisation: obs - mean, clip to +-c", "add", 3 * n_in),
+                HostOp("normalisation: / std", "mult", n_in),
+            ]
         ops += [
-            HostOp("normalisation: obs - mean, clip to +-c", "add", 3 * n_in),
-            HostOp("normalisation: / std", "mult", n_in),
             HostOp("first layer: W1 z, once per env step", "mac", n_in * n1),
             HostOp("first layer: + b1", "add", n1),
             HostOp("first layer: weight and bias reads", "weight_read", n_in * n1 + n1),
@@ -196,6 +211,7 @@ class SnnCounts:
         return Network(
             n_in=int(net["n_in"]), sizes=tuple(run["sizes"]), n_out=int(net["n_out"]),
             num_steps=int(run["num_steps"]), encoding=str(run.get("encoding", "current")),
+            population=int(run.get("population") or 0),
             readout=bool(net.get("readout", True)), input_scale=bool(net.get("input_scale", False)),
             action_mode=str(run.get("action_mode", "discrete")),
         )  # fmt: skip

@@ -95,7 +95,10 @@ class SNNConfig(_Section):
     learn_beta: bool = False
     learn_threshold: bool = False
     surrogate_slope: float = Field(25.0, gt=0.0, description="fast-sigmoid slope k")
-    encoding: Literal["current", "rate"] = "current"
+    encoding: Literal["current", "rate", "population"] = "current"
+    population: int = Field(
+        8, ge=2, description="population encoding: Gaussian receptive fields per observation"
+    )
     rate_reg: float = Field(0.0, ge=0.0, description="penalty weight on the mean firing rate")
     rate_reg_warmup: float = Field(
         0.0,

@@ -249,7 +249,8 @@ class SNNPolicy(ActorCritic):
     ) -> None:
         super().__init__(obs_dim, action_dim, discrete, init_log_std)
         self.cfg = cfg
-        self.snn = SpikingActor(obs_dim, action_dim, cfg)
+        n_in = obs_dim * cfg.population if cfg.encoding == "population" else obs_dim
+        self.snn = SpikingActor(n_in, action_dim, cfg)
         self.critic = mlp([obs_dim, *critic_hidden, 1], out_std=1.0)
         self.register_buffer("obs_low", torch.as_tensor(obs_low, dtype=torch.float32))
         self.register_buffer("obs_span", torch.as_tensor(obs_high - obs_low, dtype=torch.float32))
@@ -257,13 +258,24 @@ class SNNPolicy(ActorCritic):
     def scale01(self, raw_obs: torch.Tensor) -> torch.Tensor:
         return (raw_obs - self.obs_low) / self.obs_span
 
-    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
+    def actor_input(self, obs: torch.Tensor, raw_obs: torch.Tensor) -> torch.Tensor:
+        """What the spiking actor takes: the normalised observation (current encoding), the
+        observation scaled to [0, 1] by its true bounds (rate: spike probabilities), or the
+        population code of that (:func:`snnkart.contract.encoding.population`)."""
+        if self.cfg.encoding == "current":
+            return obs
+        x01 = self.scale01(raw_obs)
         if self.cfg.encoding == "rate":
-            x = self.scale01(raw_obs)  # spike probabilities from the true bounds
-            if input_spikes is None:
-                input_spikes = self.snn.encode(x)
-        else:
-            x = obs  # the normalised observation drives the first layer's current
+            return x01
+        size = self.cfg.population
+        centres = torch.linspace(0.0, 1.0, size, dtype=torch.float32)
+        d = (x01.clamp(0.0, 1.0).unsqueeze(-1) - centres) * float(size - 1)
+        return torch.exp(-0.5 * d * d).flatten(-2)
+
+    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
+        x = self.actor_input(obs, raw_obs)
+        if self.cfg.encoding == "rate" and input_spikes is None:
+            input_spikes = self.snn.encode(x)
         out, rates, _ = self.snn(x, input_spikes, fused=self.cfg.fused)
         return out, input_spikes, rates
 
