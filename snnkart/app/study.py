@@ -31,7 +31,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from snnkart.app.launch import LocalPool, RunResult, RunSpec
 from snnkart.app.reporter import Reporter
-from snnkart.app.study_eval import deploy_median_seeds, evaluate
+from snnkart.app.study_eval import deploy_median_seeds, eval_backend, evaluate
 from snnkart.envs.spec import ENV_REVISION
 from snnkart.envs.tracks import load_track
 from snnkart.errors import UsageError
@@ -232,7 +232,7 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
         "steps_to_finishes": steps_to(study.finishes, c),
         "training_finishes": result.finishes, "training_episodes": result.episodes,
         "train_seconds": sum(c["seconds"]),
-        "eval_backend": "nir-ref fixed" if run.policy == "snn" else "torch",
+        "eval_backend": eval_backend(run),
         "eval_success_rate": evaluation["success_rate"],
         "eval_mean_return": evaluation["mean_return"], "eval_crashes": evaluation["crashes"],
         "eval_stood_still": evaluation.get("stood_still"),

@@ -21,10 +21,21 @@ if TYPE_CHECKING:
 DEPLOY_DIR = "study-deploy-lava-sim-fixed"
 
 
+def exportable(run: Run) -> bool:
+    """An SNN the NIR export takes (current-based LIF neurons wait for issue 18)."""
+    return run.policy == "snn" and run.spec.config.snn.neuron == "lif"
+
+
+def eval_backend(run: Run) -> str:
+    if exportable(run):
+        return "nir-ref fixed"
+    return "torch" if run.policy == "ann" else "torch (cuba: no NIR export before issue 18)"
+
+
 def _eval_target(run: Run, runs_dir: Path) -> tuple[list[str], Path]:
     """The ``snnkart eval`` arguments for a run, and the file holding its summary."""
     run_dir = runs_dir / run.spec.name
-    if run.policy == "snn":
+    if exportable(run):
         out = run_dir / "study-eval-nir-ref-fixed"
         args = ["--backend", "nir-ref", "--precision", "fixed", "--out", str(out)]
         return args, out / "deploy.json"
@@ -90,7 +101,7 @@ def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: St
     runs its own processes); what each deployment gave and whether it was bit-exact."""
     cells: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for r in records:
-        if r["policy"] == "snn":
+        if r["eval_backend"] == "nir-ref fixed":
             cells.setdefault((r["track"], r["env"], r["variant"]), []).append(r)
     chosen = [median_seed(rs) for rs in cells.values()]
     cmds = []
