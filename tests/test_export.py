@@ -21,6 +21,7 @@ import torch
 from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
+from snnkart.app.report import build_report
 from snnkart.backends.reference import NIRFileError, NIRReference
 from snnkart.cli import app
 from snnkart.contract.encoding import population
@@ -482,7 +483,7 @@ def test_population_code_by_hand_and_in_torch() -> None:
     np.testing.assert_allclose(a[5:], last, rtol=1e-6)
     assert a.dtype == np.float32 and a.shape == (10,)
     cfg = load_config(overrides={"env": "steer", "policy": "snn"},
-                      sets=["snn.encoding=population", "snn.population=5"])  # fmt: skip
+                      sets=["snn.encoding=population", "snn.population=8"])  # fmt: skip
     env = cfg.make_env()
     try:
         policy = policy_for(cfg, env.unwrapped)
@@ -490,12 +491,12 @@ def test_population_code_by_hand_and_in_torch() -> None:
     finally:
         env.close()
     assert isinstance(policy, SNNPolicy)
-    assert policy.snn.fcs[0].in_features == 5 * space.shape[0]
+    assert policy.snn.fcs[0].in_features == 8 * space.shape[0]
     obs = np.random.default_rng(0).uniform(space.low, space.high, (64, space.shape[0]))
     raw = torch.from_numpy(obs.astype(np.float32))
     ours = policy.actor_input(raw, raw).numpy()
-    contract = population(obs.astype(np.float32), space.low, space.high, 5)
-    np.testing.assert_allclose(ours, contract, rtol=0, atol=1e-6)
+    contract = population(obs.astype(np.float32), space.low, space.high, 8)
+    np.testing.assert_allclose(ours, contract, rtol=0, atol=1e-6)  # exp: the last bit may differ
 
 
 def test_population_encoding_exports_and_runs_like_torch(tmp_path: Path) -> None:
@@ -513,6 +514,19 @@ def test_population_encoding_exports_and_runs_like_torch(tmp_path: Path) -> None
     data["population"] = None
     with pytest.raises(ManifestError, match="population"):
         Manifest.from_json(json.dumps(data))
+
+    # deployed and priced: the host's work is the population code's, and the ANN baseline
+    # takes the observation, not its receptive fields
+    deployed = tmp_path / "deploy"
+    result = CliRunner().invoke(app, ["deploy", str(nir_path), "--backend", "nir-ref",
+                                      "--episodes", "1", "--out", str(deployed)])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    report = build_report(deployed, None, None)
+    assert report["network"]["obs_dim"] == manifest.obs_dim
+    assert report["ann"]["same_width"]["widths"][0] == manifest.obs_dim
+    host = {op["what"] for op in report["snn"]["per_inference"]["host_ops"]}
+    assert "population encoding: x01 - centre" in host
+    assert not any(what.startswith("normalisation") for what in host)
 
 
 def test_manifest_is_mirrored_into_the_nir_metadata(exported: dict[str, Path]) -> None:

@@ -169,8 +169,19 @@ def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:
         plan(load_study(bad))
     with pytest.raises(UsageError, match=r"--only ring/\* matches no cell .*small_S/steer-snn"):
         plan(load_study(ROOT / "studies" / "small_S.toml"), ["ring/*"])
+    bad.write_text('schema = "snnkart/study-config/v1"\nsets = ["stop.finishes=10"]\n')
+    with pytest.raises(UsageError, match=r"stop\.finishes=10 would stop runs before the study's"):
+        plan(load_study(bad))
     with pytest.raises(UsageError, match="cannot read the study config"):
         load_study(tmp_path / "missing.toml")
+
+
+def test_only_takes_a_cell_with_all_its_variants_or_one_variant() -> None:
+    ablation = load_study(ROOT / "studies" / "ablation.toml")
+    assert len(plan(ablation, ["small_S/steer-snn"])) == len(plan(ablation)) == 30
+    t = plan(ablation, ["*:T*"])
+    assert [r.spec.name for r in t][:2] == ["small_S-steer-snn-T4-s1", "small_S-steer-snn-T4-s2"]
+    assert {r.variant for r in t} == {"T4", "T16"}
 
 
 @pytest.mark.parametrize("path", sorted((ROOT / "studies").glob("*.toml")), ids=lambda p: p.stem)

@@ -196,7 +196,8 @@ def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> 
     ann_pj = {}
     if runs:
         net = runs[0]["network"]
-        ann = AnnCounts((net["n_in"], 64, 64, net["n_out"]))
+        obs_dim = net["n_in"] // (runs[0].get("population") or 1)
+        ann = AnnCounts((obs_dim, 64, 64, net["n_out"]))
         ann_pj = {f"64-64 on {d.name}": total(ann_terms(ann, d)) for d in digital}
     return {"file": str(path), "env": data.get("env"), "commit": data.get("commit"),
             "profile": chip.name, "host_profile": host.name, "points": points,
@@ -228,7 +229,8 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
     chips, digital, host_profile = _profiles(profiles, host)
     snn = SnnCounts.of_deploy(record)
     net = snn.net
-    widths = (net.n_in, *net.sizes, net.n_out) if net.readout else (net.n_in, *net.sizes)
+    # the ANN baseline takes the observation itself, not a population code of it
+    widths = (net.obs_dim, *net.sizes, net.n_out) if net.readout else (net.obs_dim, *net.sizes)
     anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]] = {
         "same_width": (AnnCounts(widths, net.action_mode,
                                  f"ANN {'-'.join(map(str, net.sizes))} (same widths)"), None),
@@ -242,6 +244,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         "drives": success >= DRIVES,
         "network": {
             "n_in": net.n_in,
+            "obs_dim": net.obs_dim,
             "sizes": list(net.sizes),
             "n_out": net.n_out,
             "num_steps": net.num_steps,

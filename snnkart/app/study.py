@@ -115,10 +115,13 @@ class Run:
     variant: str = ""
 
     @property
+    def cell_label(self) -> str:
+        return f"{track_label(self.track)}/{self.env}-{self.policy}"
+
+    @property
     def label(self) -> str:
         """``TRACK/ENV-POLICY`` (``:VARIANT`` in an ablation), what ``--only`` matches."""
-        cell = f"{track_label(self.track)}/{self.env}-{self.policy}"
-        return f"{cell}:{self.variant}" if self.variant else cell
+        return f"{self.cell_label}:{self.variant}" if self.variant else self.cell_label
 
 
 def track_label(track: str) -> str:
@@ -148,12 +151,20 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
             )  # fmt: skip
             name = "-".join([track_label(track), env, policy, *([variant] if variant else []),
                              f"s{seed}"])  # fmt: skip
+            if config.stop.finishes is not None and config.stop.finishes < study.finishes:
+                raise UsageError(
+                    f"{name}: stop.finishes={config.stop.finishes} would stop runs before the "
+                    f"study's mark of {study.finishes} finishes; set it to at least that"
+                )
             runs.append(Run(track, env, policy, seed, RunSpec(name, config), variant))
     return runs if only is None else _only(runs, only)
 
 
 def _only(runs: list[Run], patterns: list[str]) -> list[Run]:
-    kept = [r for r in runs if any(fnmatch.fnmatchcase(r.label, p) for p in patterns)]
+    def matches(r: Run, pattern: str) -> bool:  # a cell's pattern takes all its variants
+        return any(fnmatch.fnmatchcase(label, pattern) for label in (r.label, r.cell_label))
+
+    kept = [r for r in runs if any(matches(r, p) for p in patterns)]
     if not kept:
         cells = ", ".join(dict.fromkeys(r.label for r in runs))
         raise UsageError(f"--only {' '.join(patterns)} matches no cell of this study ({cells})")
@@ -267,9 +278,6 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
     evaluations = evaluate(runs, runs_dir, study, jobs or os.cpu_count() or 1, reporter)
     records = [run_record(run, res, runs_dir, study, evaluations[run.spec.name])
                for run, res in zip(runs, results, strict=True)]  # fmt: skip
-    deployed = (
-        deploy_median_seeds(records, runs_dir, study, reporter) if study.deploy_episodes else []
-    )
     record = {
         "schema": RECORD_SCHEMA,
         "study": study.model_dump(mode="json", by_alias=True),
@@ -285,11 +293,15 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
         },
         "env_steps": sum(r["steps"] for r in records),
         "cells": summarise(records, study),
-        "deployed": deployed,
+        "deployed": [],
         "runs": records,
     }
-    write_json(out / "study.json", record)
-    write_documents(record, out)
+    write_json(out / "study.json", record)  # the trainings and evaluations, kept whatever
+    write_documents(record, out)  # happens to the deployments on Lava
+    if study.deploy_episodes:
+        record["deployed"] = deploy_median_seeds(records, runs_dir, study, reporter)
+        write_json(out / "study.json", record)
+        write_documents(record, out)
     return record
 
 

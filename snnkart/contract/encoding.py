@@ -60,11 +60,17 @@ def rate_spikes(rng: np.random.Generator, p: np.ndarray, num_steps: int) -> np.n
     return (rng.random((num_steps, p.shape[-1])) < p).astype(np.float32)
 
 
+def population_centres(size: int) -> np.ndarray:
+    """The receptive fields' centres ``j / (size - 1)`` (float32), for every side."""
+    return (np.arange(size, dtype=np.float32) / np.float32(size - 1)).astype(np.float32)
+
+
 def population(obs: np.ndarray, low: np.ndarray, high: np.ndarray, size: int) -> np.ndarray:
-    """The population encoding's input ``[..., n_obs * size]`` (float32; see the module)."""
+    """The population encoding's input ``[..., n_obs * size]`` (float32; see the module).
+    The torch policy computes the same operations in the same order; its ``exp`` may differ
+    from numpy's in the last bit."""
     x = rate_probabilities(obs, low, high)
-    centres = np.linspace(0.0, 1.0, size, dtype=np.float32)
-    d = (x[..., :, None] - centres) * np.float32(size - 1)
+    d = (x[..., :, None] - population_centres(size)) * np.float32(size - 1)
     a = np.exp(np.float32(-0.5) * d * d)
     return a.reshape(*x.shape[:-1], -1).astype(np.float32)
 

@@ -57,6 +57,18 @@ class Network:
             action_mode=str(manifest.get("action_mode", "discrete")),
         )
 
+    def __post_init__(self) -> None:
+        if (self.encoding == "population") != (self.population > 0):
+            raise ReportError(
+                f"a {self.encoding} encoding with population {self.population}: the deploy "
+                "record is inconsistent (written by an older snnkart?); run snnkart deploy again"
+            )
+
+    @property
+    def obs_dim(self) -> int:
+        """Observation values per inference (the graph's inputs, or their receptive fields)."""
+        return self.n_in // self.population if self.population else self.n_in
+
     @property
     def depth(self) -> int:
         """L: Dense delays between the spiking layers."""
@@ -102,8 +114,8 @@ def host_ops(net: Network, fixed_point: bool = False) -> list[HostOp]:
             HostOp("first layer: weight reads, dense upper bound", "weight_read", T * (n_in * n1 + n1)),
         ]  # fmt: skip
     else:
-        if net.population:
-            n_obs = n_in // net.population
+        if net.encoding == "population":
+            n_obs = net.obs_dim
             ops += [
                 HostOp("population encoding: (obs - low) / (high - low), clipped", "add", 3 * n_obs),
                 HostOp("population encoding: (obs - low) / (high - low)", "mult", n_obs),

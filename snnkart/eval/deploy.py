@@ -174,6 +174,7 @@ def _manifest_summary(manifest: Manifest) -> dict[str, Any]:
     return {
         "num_steps": manifest.num_steps,
         "encoding": manifest.encoding,
+        "population": manifest.population,
         "layers": [asdict(layer) for layer in manifest.layers],
         "action_mode": manifest.action_mode,
         "training": manifest.training,

@@ -20,6 +20,7 @@ from snntorch import surrogate
 from torch import nn
 from torch.distributions import Categorical, Normal
 
+from snnkart.contract.encoding import population_centres
 from snnkart.envs.base import KartEnv
 from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
 from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
@@ -268,9 +269,9 @@ class SNNPolicy(ActorCritic):
         if self.cfg.encoding == "rate":
             return x01
         size = self.cfg.population
-        centres = torch.linspace(0.0, 1.0, size, dtype=torch.float32)
+        centres = torch.from_numpy(population_centres(size))
         d = (x01.clamp(0.0, 1.0).unsqueeze(-1) - centres) * float(size - 1)
-        return torch.exp(-0.5 * d * d).flatten(-2)
+        return torch.exp(-0.5 * d * d).flatten(-2)  # exp: equal to numpy's up to the last bit
 
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
         x = self.actor_input(obs, raw_obs)

@@ -28,6 +28,11 @@ def check_due(stop: StopConfig, progress: Progress) -> bool:
     return stop.finishes is not None and progress.global_step // stop.every > progress.stop_mark
 
 
+def check_worthwhile(cfg: TrainConfig, progress: Progress) -> bool:
+    """A due check before the last iteration (after it, the run ends anyway)."""
+    return check_due(cfg.stop, progress) and progress.global_step < cfg.total_steps
+
+
 def stopped(stop: StopConfig, progress: Progress) -> bool:
     return stop.finishes is not None and progress.stop_streak >= stop.checks
 
@@ -72,7 +77,7 @@ def check(
 ) -> dict[str, Any]:
     """Run the check if one is due; update ``progress``; return what the metrics record."""
     stop = cfg.stop
-    if not check_due(stop, progress):
+    if not check_worthwhile(cfg, progress):
         return {}
     assert stop.finishes is not None
     mark = progress.global_step // stop.every
