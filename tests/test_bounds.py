@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from snnkart.envs.config import GAZEBO_STALL
 from snnkart.envs.gazebo import GazeboEnv
 from snnkart.envs.grid import GridEnv
 from snnkart.envs.steer import SteerEnv
@@ -303,11 +304,15 @@ def test_stalling_costs_per_step_after_the_grace(env_class):
         paid.append(info["reward_terms"]["stall"])
         assert_reward_adds_up(reward, info, "stall")
     assert paid[:21] == [0.0] * 21 and paid[21:] == [-0.05] * 19
-    # off by default, and then left out of the env spec: runs made before it existed match
+    # on by default in gazebo only (also when a reward section leaves it out); off, it is
+    # left out of the env spec, so grid and steer runs made before it existed match
     from snnkart.envs.spec import env_spec
 
-    assert env_class(track="small_S").config.reward.stall == 0.0
-    assert "stall" not in env_spec(env_class(track="small_S"))["env_config"]["reward"]
+    default = env_class(track="small_S")
+    partial = env_class(track="small_S", config={"reward": {"time": 0.002}})
+    expected = GAZEBO_STALL if env_class is GazeboEnv else 0.0
+    assert default.config.reward.stall == partial.config.reward.stall == expected
+    assert ("stall" in env_spec(default)["env_config"]["reward"]) == (expected > 0)
     assert env_spec(env)["env_config"]["reward"]["stall"] == 0.05
 
 

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 import tomli_w
 import torch
+from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
 from snnkart.cli import app
@@ -790,3 +791,29 @@ def test_firing_rate_penalty_warmup_ramps_the_penalty(tmp_path: Path) -> None:
     for key in ("losses/policy_loss", "losses/value_loss", "losses/approx_kl"):
         assert warm[0][key] == without[0][key], key
     assert warm[1]["losses/approx_kl"] != without[1]["losses/approx_kl"]
+
+
+def test_a_run_made_before_a_default_changed_evaluates_and_resumes_in_its_own_env(
+    tmp_path: Path,
+) -> None:
+    """gazebo's reward.stall became 0.01 by default; a run trained when it was off (here:
+    set off, with the override then dropped from its config.toml as an older run's would
+    not have it) still loads and resumes in the env it was trained in, not today's."""
+    run = train_tiny(tmp_path / "old", "gazebo", "snn", total_steps=256,
+                     extra_sets=["env_config.reward.stall=0"])  # fmt: skip
+    config = run / "config.toml"
+    config.write_text(config.read_text().replace("stall = 0", "").replace("stall = 0.0", ""))
+    assert "stall" not in config.read_text()
+    loaded = load_run(run)
+    env = loaded.config.make_env(track=loaded.track)
+    try:
+        assert env.unwrapped.config.reward.stall == 0.0  # type: ignore[attr-defined]
+    finally:
+        env.close()
+    resumed = Trainer(load_config(overrides={"total_steps": 512}), run, resume=True)
+    try:
+        assert resumed.env0.config.reward.stall == 0.0
+        resumed.train()
+    finally:
+        resumed.close()
+    assert json.loads((run / "checkpoint.json").read_text())["global_step"] == 512

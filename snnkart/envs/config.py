@@ -155,8 +155,29 @@ class GridConfig(EnvConfig):
     physics: GridPhysics = GridPhysics()
 
 
+GAZEBO_STALL = 0.01
+"""gazebo's default ``reward.stall``. Without it, ANN seeds on small_S learned to park before a
+corner until the stand-still limit: seed 7 never finished in 300k steps, seed 10 not in 288k,
+seed 5 first at 266k (benchmarks/results/every-seed-0abeccf-small_S-partial.json). With it,
+all of seeds 1-10 finished, ANN and SNN (study-43bb29c-small_S-stall0.01 for seeds 1-5,
+study-10f0252-gazebo-stall0.01-s6-10). A costlier, sooner stand-still ending did not do it
+(study-10f0252-gazebo-standstill2-100steps: an SNN seed never finished). The original ended
+an episode that receded from its target for 30 steps ("deserting"); grid and steer, where
+no seed parked, keep it off (with it, a steer ANN seed never finished)."""
+
+
 class GazeboConfig(EnvConfig):
     physics: GazeboPhysics = GazeboPhysics()
+    reward: RewardConfig = RewardConfig(stall=GAZEBO_STALL)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _gazebo_reward(cls, data: Any) -> Any:
+        """A reward section given without ``stall`` keeps gazebo's default."""
+        if isinstance(data, dict) and isinstance(data.get("reward"), dict):
+            if "stall" not in data["reward"]:
+                data = {**data, "reward": {**data["reward"], "stall": GAZEBO_STALL}}
+        return data
 
 
 class SteerConfig(EnvConfig):

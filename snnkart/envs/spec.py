@@ -8,6 +8,7 @@ never run on an env whose observations mean something else.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 from pathlib import Path
@@ -104,6 +105,22 @@ def _env_config(env: KartEnv) -> dict[str, Any]:
         if isinstance(values, dict) and not values.get(switch):
             for field in fields:
                 values.pop(field, None)
+    return data
+
+
+def trained_env_config(saved: dict[str, Any]) -> dict[str, Any] | None:
+    """The env config a policy was trained with, from its saved spec (None if it has none):
+    the full resolved config, with the terms left out while off written back as off, so a
+    later change of a default does not change the env an existing run evaluates or resumes
+    in."""
+    data = saved.get("env_config")
+    if not isinstance(data, dict):
+        return None
+    data = {k: copy.deepcopy(v) for k, v in data.items() if v is not None}  # None: unset
+    for section, (switch, _) in _ADDED_OFF.items():
+        values = data.get(section)
+        if isinstance(values, dict) and switch not in values:
+            values[switch] = 0.0
     return data
 
 

@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from snnkart import faults
-from snnkart.envs.spec import env_spec, spec_hash
+from snnkart.envs.spec import env_spec, spec_hash, trained_env_config
 from snnkart.envs.tracks import embed_track, load_track
 from snnkart.errors import RunError
 from snnkart.rl.buffer import Batch, RolloutBuffer, compute_gae
@@ -70,6 +70,9 @@ class Trainer:
         )
         if checkpoint is not None:
             self.track = checkpoint_track(checkpoint[1], cfg, self.out.latest)
+            trained = trained_env_config(checkpoint[1].get("env_spec", {}))
+            if trained is not None:  # resume in the env it was trained in (defaults may move)
+                self.cfg = cfg = cfg.model_copy(update={"env_config": trained})
         else:
             self.track = load_track(cfg.track)
         torch.set_num_threads(cfg.run.torch_threads)

@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from snnkart.contract.encoding import rate_generator, rate_probabilities, rate_spikes
+from snnkart.envs.spec import trained_env_config
 from snnkart.envs.tracks import Track, TrackError, embed_track
 from snnkart.rl.checkpoint import (
     CheckpointError,
@@ -56,6 +57,9 @@ def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Loade
     cfg = read_run_config(run_dir)
     ckpt = Path(checkpoint) if checkpoint is not None else run_dir / "checkpoint.pt"
     state, meta = load_checkpoint(ckpt)
+    trained = trained_env_config(meta.get("env_spec", {}))
+    if trained is not None:  # the env it was trained in, whatever the defaults are today
+        cfg = cfg.model_copy(update={"env_config": trained})
     try:
         track = checkpoint_track(meta, cfg, ckpt)
     except TrackError as exc:
