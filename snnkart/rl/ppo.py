@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from snnkart import faults
-from snnkart.envs.spec import env_spec, spec_hash, trained_env_config
+from snnkart.envs.spec import env_spec, spec_hash
 from snnkart.envs.tracks import embed_track, load_track
 from snnkart.errors import RunError
 from snnkart.rl.buffer import Batch, RolloutBuffer, compute_gae
@@ -33,7 +33,7 @@ from snnkart.rl.checkpoint import RunningMeanStd, check_compatible, load_checkpo
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import policy_for
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
-from snnkart.rl.run_dir import RunDir, checkpoint_track
+from snnkart.rl.run_dir import RunDir, checkpoint_track, trained_config
 from snnkart.rl.stopping import check, stopped
 
 __all__ = ["Progress", "RunError", "Trainer", "compute_gae", "normalize_obs", "policy_for"]
@@ -70,9 +70,8 @@ class Trainer:
         )
         if checkpoint is not None:
             self.track = checkpoint_track(checkpoint[1], cfg, self.out.latest)
-            trained = trained_env_config(checkpoint[1].get("env_spec", {}))
-            if trained is not None:  # resume in the env it was trained in (defaults may move)
-                self.cfg = cfg = cfg.model_copy(update={"env_config": trained})
+            # resume in the env it was trained in, whatever the defaults are today
+            self.cfg = cfg = trained_config(checkpoint[1], cfg, self.track)
         else:
             self.track = load_track(cfg.track)
         torch.set_num_threads(cfg.run.torch_threads)

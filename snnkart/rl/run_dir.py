@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.envs.spec import env_spec, spec_hash, trained_env_config
 from snnkart.envs.tracks import Track, embedded_track, load_track
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import save_checkpoint
@@ -28,6 +29,33 @@ def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Tr
     if meta.get("track"):
         return embedded_track(meta["track"], str(source))
     return load_track(cfg.track)
+
+
+def trained_config(meta: dict[str, Any], cfg: TrainConfig, track: Track) -> TrainConfig:
+    """``cfg``; or, where the env it describes today is not the one the checkpoint was trained
+    in (a default changed since), ``cfg`` with the env config the checkpoint was trained with
+    (:func:`snnkart.envs.spec.trained_env_config`) under the settings ``cfg`` makes itself."""
+    env = cfg.make_env(track=track)
+    try:
+        today = env_spec(env.unwrapped)  # type: ignore[arg-type]
+        same = meta.get("env_spec_hash") == spec_hash(today)
+    finally:
+        env.close()
+    trained = None if same else trained_env_config(meta.get("env_spec", {}))
+    if trained is None:
+        return cfg
+    # what the run's config sets stays set (a contradiction is then reported, not hidden)
+    return cfg.model_copy(update={"env_config": _merged(trained, cfg.env_config)})
+
+
+def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in over.items():
+        old = out.get(key)
+        out[key] = (
+            _merged(old, value) if isinstance(old, dict) and isinstance(value, dict) else value
+        )
+    return out
 
 
 def _iteration_of(line: str) -> float:

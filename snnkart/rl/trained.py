@@ -10,7 +10,6 @@ import numpy as np
 import torch
 
 from snnkart.contract.encoding import rate_generator, rate_probabilities, rate_spikes
-from snnkart.envs.spec import trained_env_config
 from snnkart.envs.tracks import Track, TrackError, embed_track
 from snnkart.rl.checkpoint import (
     CheckpointError,
@@ -21,7 +20,7 @@ from snnkart.rl.checkpoint import (
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.policies import ActorCritic, SNNPolicy, policy_for
 from snnkart.rl.rollout import normalize_obs
-from snnkart.rl.run_dir import checkpoint_track
+from snnkart.rl.run_dir import checkpoint_track, trained_config
 
 
 @dataclass
@@ -57,9 +56,6 @@ def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Loade
     cfg = read_run_config(run_dir)
     ckpt = Path(checkpoint) if checkpoint is not None else run_dir / "checkpoint.pt"
     state, meta = load_checkpoint(ckpt)
-    trained = trained_env_config(meta.get("env_spec", {}))
-    if trained is not None:  # the env it was trained in, whatever the defaults are today
-        cfg = cfg.model_copy(update={"env_config": trained})
     try:
         track = checkpoint_track(meta, cfg, ckpt)
     except TrackError as exc:
@@ -67,6 +63,7 @@ def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Loade
             f"{ckpt}: {exc} (this checkpoint predates embedded tracks: put the track file back "
             "where it was trained, or retrain)"
         ) from exc
+    cfg = trained_config(meta, cfg, track)  # the env it was trained in, whatever the defaults
     env = cfg.make_env(track=track)
     try:
         check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]

@@ -133,7 +133,10 @@ def describe_export(nir_path: Path) -> dict[str, Any]:
         for field, value in sorted(vars(node).items()):
             if isinstance(value, np.ndarray) and value.dtype != object:
                 arrays[f"{name}.{field}"] = _sha([value])
-    manifest = json.loads(nir_path.with_suffix(".manifest.json").read_text())
+    from snnkart.contract.manifest import Manifest
+
+    # the manifest as today's code reads it (fields added since take their defaults)
+    manifest = json.loads(Manifest.read(nir_path.with_suffix(".manifest.json")).to_json())
     return {
         "nodes": sorted(graph.nodes),
         "edges": sorted(map(list, graph.edges)),
