@@ -752,7 +752,7 @@ def test_entropy_coefficient_anneals_with_the_learning_rate(tmp_path: Path, anne
 @pytest.mark.parametrize(
     ("env", "policy", "ent_coef", "learning_rate", "rollout"),
     [
-        ("grid", "ann", 0.0, 3e-4, (8, 256)), ("grid", "snn", 0.0, 1e-3, (8, 256)),
+        ("grid", "ann", 0.005, 3e-4, (8, 256)), ("grid", "snn", 0.0, 1e-3, (8, 256)),
         ("gazebo", "ann", 0.02, 1e-3, (8, 256)), ("gazebo", "snn", 0.02, 1e-3, (16, 128)),
         ("steer", "ann", 0.02, 3e-4, (8, 256)), ("steer", "snn", 0.01, 1e-3, (8, 256)),
     ],
