@@ -76,7 +76,7 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
         for env in study["envs"]:
             # the original's numbers: its track and its mark of 300 finishes only
             comparable = Path(track).stem == "small_S" and n == 300
-            for variant in list(study.get("variants") or {}) or [""]:
+            for variant in _variants(study):
                 by = {c["policy"]: c for c in cells
                       if (c["track"], c["env"], c.get("variant", "")) == (track, env, variant)}  # fmt: skip
                 if by:
@@ -168,10 +168,14 @@ def _cell(r: dict[str, Any]) -> tuple[str, str, str, str]:
     return (r["track"], r["env"], r["policy"], r.get("variant", ""))
 
 
+def _variants(study: dict[str, Any]) -> list[str]:
+    """The study's variant names; one unnamed variant outside an ablation."""
+    return list(study.get("variants") or {}) or [""]
+
+
 def _groups(study: dict[str, Any]) -> list[tuple[str, str]]:
     """(policy, variant) of every band in a panel; an ablation colours them by variant."""
-    variants = list(study.get("variants") or {}) or [""]
-    return [(p, v) for p in study["policies"] for v in variants]
+    return [(p, v) for p in study["policies"] for v in _variants(study)]
 
 
 def write_plots(record: dict[str, Any], out: Path) -> list[Path]:

@@ -236,6 +236,7 @@ class SNNPolicy(ActorCritic):
     kind = "snn"
     obs_low: torch.Tensor
     obs_span: torch.Tensor
+    centres: torch.Tensor
 
     def __init__(
         self,
@@ -255,6 +256,13 @@ class SNNPolicy(ActorCritic):
         self.critic = mlp([obs_dim, *critic_hidden, 1], out_std=1.0)
         self.register_buffer("obs_low", torch.as_tensor(obs_low, dtype=torch.float32))
         self.register_buffer("obs_span", torch.as_tensor(obs_high - obs_low, dtype=torch.float32))
+        # the receptive fields' centres (population encoding): fixed, so not in the state dict
+        centres = (
+            population_centres(cfg.population)
+            if cfg.encoding == "population"
+            else np.zeros(0, dtype=np.float32)
+        )
+        self.register_buffer("centres", torch.as_tensor(centres), persistent=False)
 
     def scale01(self, raw_obs: torch.Tensor) -> torch.Tensor:
         return (raw_obs - self.obs_low) / self.obs_span
@@ -268,9 +276,7 @@ class SNNPolicy(ActorCritic):
         x01 = self.scale01(raw_obs)
         if self.cfg.encoding == "rate":
             return x01
-        size = self.cfg.population
-        centres = torch.from_numpy(population_centres(size))
-        d = (x01.clamp(0.0, 1.0).unsqueeze(-1) - centres) * float(size - 1)
+        d = (x01.clamp(0.0, 1.0).unsqueeze(-1) - self.centres) * float(self.cfg.population - 1)
         return torch.exp(-0.5 * d * d).flatten(-2)  # exp: equal to numpy's up to the last bit
 
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]

@@ -152,10 +152,10 @@ class Trainer:
         on_iteration: Callable[[dict[str, Any]], None] | None = None,
         save_every_iteration: bool = False,
     ) -> Progress:
-        """Run until ``total_steps`` (or the ``stop`` rule); Ctrl-C or SIGTERM saves a checkpoint before returning
-        (``self.interrupted_by`` is then the signal). The interrupt is taken between env
-        steps; a rollout cut short is dropped, so the checkpoint holds the last whole
-        iteration. ``save_every_iteration`` also writes the latest checkpoint after every
+        """Run until ``total_steps`` (or until the ``stop`` rule ends the run); Ctrl-C or
+        SIGTERM saves a checkpoint before returning (``self.interrupted_by`` is then the
+        signal). The interrupt is taken between env steps; a rollout cut short is dropped, so
+        the checkpoint holds the last whole iteration. ``save_every_iteration`` also writes the latest checkpoint after every
         iteration, before ``on_iteration`` (for a worker that may be stopped from outside
         without a signal, as Ray Tune stops its trials)."""
         buf = self._allocate()

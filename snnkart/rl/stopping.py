@@ -23,14 +23,15 @@ from snnkart.rl.rollout import Progress
 from snnkart.rl.trained import LoadedRun, TorchPredictor
 
 
-def check_due(stop: StopConfig, progress: Progress) -> bool:
-    """A check is due when the run crossed a multiple of ``stop.every`` not yet handled."""
-    return stop.finishes is not None and progress.global_step // stop.every > progress.stop_mark
-
-
-def check_worthwhile(cfg: TrainConfig, progress: Progress) -> bool:
-    """A due check before the last iteration (after it, the run ends anyway)."""
-    return check_due(cfg.stop, progress) and progress.global_step < cfg.total_steps
+def check_due(cfg: TrainConfig, progress: Progress) -> bool:
+    """A check is due when the run crossed a multiple of ``stop.every`` not yet handled, before
+    its last iteration (after it, the run ends anyway)."""
+    stop = cfg.stop
+    return (
+        stop.finishes is not None
+        and progress.global_step // stop.every > progress.stop_mark
+        and progress.global_step < cfg.total_steps
+    )
 
 
 def stopped(stop: StopConfig, progress: Progress) -> bool:
@@ -77,7 +78,7 @@ def check(
 ) -> dict[str, Any]:
     """Run the check if one is due; update ``progress``; return what the metrics record."""
     stop = cfg.stop
-    if not check_worthwhile(cfg, progress):
+    if not check_due(cfg, progress):
         return {}
     assert stop.finishes is not None
     mark = progress.global_step // stop.every
