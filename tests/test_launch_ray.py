@@ -129,7 +129,8 @@ def test_a_study_runs_its_trainings_as_tune_trials(tmp_path: Path) -> None:
     cfg = tmp_path / "study.toml"
     cfg.write_text(
         'schema = "snnkart/study-config/v1"\nenvs = ["grid"]\npolicies = ["ann", "snn"]\n'
-        f"seeds = [1]\nsteps = {2 * BATCH}\neval_episodes = 1\nsets = {json.dumps(TINY)}\n"
+        f"seeds = [1]\nsteps = {2 * BATCH}\neval_episodes = 1\ndeploy_episodes = 0\n"  # Lava: test_study
+        f"sets = {json.dumps(TINY)}\n"
     )
     result = subprocess.run(
         [sys.executable, "-m", "snnkart.cli", "study", str(cfg), "--out", str(tmp_path / "out"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -95,6 +96,11 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
         assert image.shape[0] > 200 and image.std() > 0.01  # drawn, not blank
         assert (out / "plots" / f"small_S-{key}.svg").read_text().lstrip().startswith("<?xml")
     assert record["wall_clock"]["runs_reused"] == 2 and record["only"] is None
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, text=True,
+                          capture_output=True).stdout.strip()  # fmt: skip
+    machine = record["machine"]  # committed results say where they were made
+    assert machine["commit"].removesuffix("-dirty") == (head or "unknown"), machine
+    assert machine["cores"] == os.cpu_count() and f"Commit {machine['commit']}," in text
 
     # run again: everything is reused, nothing evaluated again
     stamp = (out / "runs/small_S-grid-ann-s1/study-eval.json").stat().st_mtime
@@ -192,16 +198,18 @@ def test_the_committed_studies_plan(path: Path) -> None:
         assert (ROOT / run.track).is_file() or run.track in ("small_S", "big_S")
 
 
-def test_a_run_stopped_early_drops_out_of_the_band_where_it_ended() -> None:
+def test_the_median_is_drawn_while_every_seed_trains_and_each_seed_to_its_end() -> None:
     runs = [
-        {"curve": {"steps": [1, 2, 3, 4], "finishes": [0, 10, 20, 30]}},
-        {"curve": {"steps": [1, 2], "finishes": [2, 12]}},  # stopped after two iterations
+        {"curve": {"steps": [1, 2, 3, 4], "finishes": [0, 10, 20, 30]}, "stopped_early": False},
+        {"curve": {"steps": [1, 2], "finishes": [2, 12]}, "stopped_early": True},
     ]
     fig, ax = plt.subplots()
     _band(ax, runs, "finishes", "blue", "ANN")
-    solid, dotted = ax.get_lines()
-    assert list(solid.get_xdata()) == [1, 2] and list(solid.get_ydata()) == [1, 11]
-    assert list(dotted.get_xdata()) == [2, 3, 4] and list(dotted.get_ydata()) == [11, 20, 30]
+    median, seed_a, seed_b, stop = ax.get_lines()
+    assert list(median.get_xdata()) == [1, 2] and list(median.get_ydata()) == [1, 11]
+    assert list(seed_a.get_xdata()) == [1, 2, 3, 4] and list(seed_a.get_ydata()) == [0, 10, 20, 30]
+    assert list(seed_b.get_ydata()) == [2, 12]
+    assert list(stop.get_xdata()) == [2] and list(stop.get_ydata()) == [12]  # where it stopped
     plt.close(fig)
 
 

@@ -30,6 +30,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from snnkart.app.launch import LocalPool, RunResult, RunSpec
+from snnkart.app.provenance import machine_info
 from snnkart.app.reporter import Reporter
 from snnkart.app.study_eval import deploy_median_seeds, eval_backend, evaluate
 from snnkart.envs.spec import ENV_REVISION
@@ -284,6 +285,7 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
         "only": only,
         "env_revision": ENV_REVISION,
         "code": code_digest()[:20],
+        "machine": machine_info(),  # with the commit
         "wall_clock": {
             "train_seconds": train_wall,
             "eval_seconds": time.perf_counter() - start - train_wall,

@@ -88,6 +88,9 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
               f"{w['eval_seconds'] / 60:.1f} min of wall-clock for {w['runs']} runs "
               f"({w['runs_reused']} reused); {record['env_steps']:,} env steps in all. "
               f"Env revision {record['env_revision']}, training code {record['code']}.", ""]  # fmt: skip
+    if "machine" in record:  # records before it have no machine
+        m = record["machine"]
+        lines += [f"Commit {m['commit']}, {m['cores']} cores of {m['cpu']}, {m['date']}.", ""]
     return "\n".join(lines)
 
 
@@ -143,24 +146,26 @@ def _rows(env: str, by: dict[str, dict[str, Any]], orig: dict[str, float] | None
 
 
 def _band(ax: Any, runs: list[dict[str, Any]], key: str, colour: str, label: str) -> None:
-    """Median line and min-max band over seeds. A run stopped early (the study's ``stop``
-    rule) drops out where it ended; from there the median is drawn dotted, over the seeds
-    still training."""
-    longest = max(runs, key=lambda r: len(r["curve"]["steps"]))
-    steps = np.asarray(longest["curve"]["steps"], dtype=float)
-    ys = np.full((len(runs), len(steps)), np.nan)
-    for row, r in zip(ys, runs, strict=True):
-        values = r["curve"][key]
-        row[: len(values)] = [np.nan if v is None else v for v in values]
+    """Every seed as a thin line, and the median and min-max band over seeds while every seed
+    is still training. A run stopped early (the study's ``stop`` rule: it had learned) ends in
+    a dot; after the first such stop the median of the seeds left would be a median of the
+    slow ones (a cumulative count would seem to fall), so it is not drawn."""
+    full = min(len(r["curve"]["steps"]) for r in runs)
+    steps = np.asarray(runs[0]["curve"]["steps"][:full], dtype=float)
+    ys = np.asarray([[np.nan if v is None else v for v in r["curve"][key][:full]] for r in runs],
+                    dtype=float)  # fmt: skip
     with warnings.catch_warnings():  # iterations in which no seed ended an episode: a gap
         warnings.simplefilter("ignore", RuntimeWarning)
         median, low, high = (np.nanmedian(ys, axis=0), np.nanmin(ys, axis=0),
                              np.nanmax(ys, axis=0))  # fmt: skip
-    full = min(len(r["curve"]["steps"]) for r in runs)
-    ax.plot(steps[:full], median[:full], color=colour, label=f"{label} (median of {len(runs)})")
-    if full < len(steps):
-        ax.plot(steps[full - 1 :], median[full - 1 :], color=colour, ls=":")
-    ax.fill_between(steps, low, high, color=colour, alpha=0.2)
+    ax.plot(steps, median, color=colour, lw=2, label=f"{label} (median of {len(runs)})")
+    ax.fill_between(steps, low, high, color=colour, alpha=0.15)
+    for r in runs:
+        x = np.asarray(r["curve"]["steps"], dtype=float)
+        y = np.asarray([np.nan if v is None else v for v in r["curve"][key]], dtype=float)
+        ax.plot(x, y, color=colour, lw=0.6, alpha=0.45)
+        if r.get("stopped_early"):
+            ax.plot(x[-1:], y[-1:], "o", color=colour, ms=3.5)
     ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")
 
 
@@ -187,8 +192,9 @@ def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
     for track in _tracks(record):
         for key, ylabel in (("finishes", "cumulative finished episodes"),
                             ("return", "mean episodic return")):  # fmt: skip
-            fig, axes = _figure(4.2 * len(study["envs"]), 3.4, ncols=len(study["envs"]))
-            for ax, env in zip(axes[0], study["envs"], strict=True):
+            envs = [e for e in study["envs"] if any(_cell(r)[:2] == (track, e) for r in runs)]
+            fig, axes = _figure(4.2 * len(envs), 3.4, ncols=len(envs))
+            for ax, env in zip(axes[0], envs, strict=True):
                 for k, (policy, variant) in enumerate(_groups(study)):
                     cell = (track, env, policy, variant)
                     rs = [r for r in runs if _cell(r) == cell]
@@ -197,6 +203,7 @@ def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
                         _band(ax, rs, key, colour, f"{policy.upper()} {variant}".strip())
                 if key == "finishes":
                     ax.axhline(study["finishes"], color="grey", lw=0.8, ls=":")
+                    ax.plot([], [], "o", color="grey", ms=3.5, label="stopped: learned")
                 ax.set_title(f"{env} / {Path(track).stem}")
                 ax.set_xlabel("training env steps")
                 ax.set_ylabel(ylabel)
