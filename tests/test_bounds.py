@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from snnkart.envs.config import GAZEBO_STALL
+from snnkart.envs.config import GAZEBO_REWARD, STEER_REWARD
 from snnkart.envs.gazebo import GazeboEnv
 from snnkart.envs.grid import GridEnv
 from snnkart.envs.steer import SteerEnv
@@ -304,15 +304,18 @@ def test_stalling_costs_per_step_after_the_grace(env_class):
         paid.append(info["reward_terms"]["stall"])
         assert_reward_adds_up(reward, info, "stall")
     assert paid[:21] == [0.0] * 21 and paid[21:] == [-0.05] * 19
-    # on by default in gazebo only (also when a reward section leaves it out); off, it is
-    # left out of the env spec, so grid and steer runs made before it existed match
+    # on by default in gazebo and steer (also when a reward section leaves it out); off, it
+    # is left out of the env spec, so grid runs made before it existed match
     from snnkart.envs.spec import env_spec
 
     default = env_class(track="small_S")
     partial = env_class(track="small_S", config={"reward": {"time": 0.002}})
-    expected = GAZEBO_STALL if env_class is GazeboEnv else 0.0
-    assert default.config.reward.stall == partial.config.reward.stall == expected
-    assert ("stall" in env_spec(default)["env_config"]["reward"]) == (expected > 0)
+    own = {GazeboEnv: GAZEBO_REWARD, SteerEnv: STEER_REWARD}.get(env_class, {})
+    expected = {"stall": 0.0, "stand_still": 1.0, **own}
+    for config in (default.config, partial.config):
+        assert {k: getattr(config.reward, k) for k in expected} == expected
+    assert partial.config.reward.time == 0.002
+    assert ("stall" in env_spec(default)["env_config"]["reward"]) == (expected["stall"] > 0)
     assert env_spec(env)["env_config"]["reward"]["stall"] == 0.05
 
 

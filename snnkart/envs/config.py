@@ -7,7 +7,7 @@ reject unknown keys, so a misspelled key in a TOML file or a dict fails with its
 from __future__ import annotations
 
 import math
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -133,6 +133,17 @@ class SteerPhysics(_Frozen):
 class EnvConfig(_Frozen):
     """Settings shared by all kart environments."""
 
+    REWARD_DEFAULTS: ClassVar[dict[str, float]] = {}
+    """This env's reward terms that differ from :class:`RewardConfig`'s defaults; a reward
+    section given without one of them keeps it."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _env_reward_defaults(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("reward"), dict):
+            data = {**data, "reward": {**cls.REWARD_DEFAULTS, **data["reward"]}}
+        return data
+
     lidar: LidarConfig = LidarConfig()
     reward: RewardConfig = RewardConfig()
     max_episode_steps: int | None = Field(
@@ -155,30 +166,35 @@ class GridConfig(EnvConfig):
     physics: GridPhysics = GridPhysics()
 
 
-GAZEBO_STALL = 0.01
-"""gazebo's default ``reward.stall``. Without it, ANN seeds on small_S learned to park before a
-corner until the stand-still limit: seed 7 never finished in 300k steps, seed 10 not in 288k,
-seed 5 first at 266k (benchmarks/results/every-seed-0abeccf-small_S-partial.json). With it,
-all of seeds 1-10 finished, ANN and SNN (study-43bb29c-small_S-stall0.01 for seeds 1-5,
-study-10f0252-gazebo-stall0.01-s6-10). A costlier, sooner stand-still ending did not do it
-(study-10f0252-gazebo-standstill2-100steps: an SNN seed never finished). The original ended
-an episode that receded from its target for 30 steps ("deserting"); grid and steer, where
-no seed parked, keep it off (with it, a steer ANN seed never finished)."""
+GAZEBO_REWARD = {"stall": 0.01}
+"""gazebo's reward defaults. Without the stall term, ANN seeds on small_S learned to park
+before a corner until the stand-still limit: seed 7 never finished in 300k steps, seed 10 not
+in 288k, seed 5 first at 266k (benchmarks/results/every-seed-0abeccf-small_S-partial.json).
+With it, all of seeds 1-10 finished, ANN and SNN (study-43bb29c-small_S-stall0.01 for seeds
+1-5, study-10f0252-gazebo-stall0.01-s6-10). A costlier, sooner stand-still ending instead did
+not do it (study-10f0252-gazebo-standstill2-100steps: an SNN seed never finished). The
+original ended an episode that receded from its target for 30 steps ("deserting")."""
+
+STEER_REWARD = {"stall": 0.01, "stand_still": 2.0}
+"""steer's reward defaults. Parking before a corner until the stand-still limit cost 1.0,
+200 steps away: 0.37 at decision time with gamma 0.995, far less than a crash (1.0 at once),
+so seeds that had not yet learned a corner learned to park there. On the ring track (the
+track of issue 17's report), ANN seeds 1 and 10 parked for good (8/10 seeds finished,
+held-out-7028a5d-ring-steer-before). The stall term alone did not do it on small_S (ANN seed
+5 never finished, study-43bb29c-small_S-stall0.01). With both, parking costs about 1.5 at
+decision time: small_S ANN 10/10, ring ANN 9/10 (seed 8 now crashes at the first corner
+instead, study-7028a5d-steer-stall0.01-standstill2-ann), SNN 10/10 on both
+(study-7028a5d-steer-stall0.01-standstill2-snn). Grid, where no seed parked, keeps
+:class:`RewardConfig`'s defaults."""
 
 
 class GazeboConfig(EnvConfig):
+    REWARD_DEFAULTS = GAZEBO_REWARD
     physics: GazeboPhysics = GazeboPhysics()
-    reward: RewardConfig = RewardConfig(stall=GAZEBO_STALL)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _gazebo_reward(cls, data: Any) -> Any:
-        """A reward section given without ``stall`` keeps gazebo's default."""
-        if isinstance(data, dict) and isinstance(data.get("reward"), dict):
-            if "stall" not in data["reward"]:
-                data = {**data, "reward": {**data["reward"], "stall": GAZEBO_STALL}}
-        return data
+    reward: RewardConfig = RewardConfig(**GAZEBO_REWARD)
 
 
 class SteerConfig(EnvConfig):
+    REWARD_DEFAULTS = STEER_REWARD
     physics: SteerPhysics = SteerPhysics()
+    reward: RewardConfig = RewardConfig(**STEER_REWARD)
