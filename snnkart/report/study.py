@@ -150,19 +150,19 @@ def _band(ax: Any, runs: list[dict[str, Any]], key: str, colour: str, label: str
     is still training. A run stopped early (the study's ``stop`` rule: it had learned) ends in
     a dot; after the first such stop the median of the seeds left would be a median of the
     slow ones (a cumulative count would seem to fall), so it is not drawn."""
-    full = min(len(r["curve"]["steps"]) for r in runs)
-    steps = np.asarray(runs[0]["curve"]["steps"][:full], dtype=float)
-    ys = np.asarray([[np.nan if v is None else v for v in r["curve"][key][:full]] for r in runs],
-                    dtype=float)  # fmt: skip
+    curves = [(np.asarray(r["curve"]["steps"], dtype=float),
+               np.asarray([np.nan if v is None else v for v in r["curve"][key]], dtype=float))
+              for r in runs]  # fmt: skip
+    full = min(len(x) for x, _ in curves)
+    steps = curves[0][0][:full]
+    ys = np.stack([y[:full] for _, y in curves])
     with warnings.catch_warnings():  # iterations in which no seed ended an episode: a gap
         warnings.simplefilter("ignore", RuntimeWarning)
         median, low, high = (np.nanmedian(ys, axis=0), np.nanmin(ys, axis=0),
                              np.nanmax(ys, axis=0))  # fmt: skip
     ax.plot(steps, median, color=colour, lw=2, label=f"{label} (median of {len(runs)})")
     ax.fill_between(steps, low, high, color=colour, alpha=0.15)
-    for r in runs:
-        x = np.asarray(r["curve"]["steps"], dtype=float)
-        y = np.asarray([np.nan if v is None else v for v in r["curve"][key]], dtype=float)
+    for r, (x, y) in zip(runs, curves, strict=True):
         ax.plot(x, y, color=colour, lw=0.6, alpha=0.45)
         if r.get("stopped_early"):
             ax.plot(x[-1:], y[-1:], "o", color=colour, ms=3.5)
