@@ -243,3 +243,32 @@ def test_an_ablation_trains_every_variant_and_reports_its_spikes(tmp_path: Path)
     bad.write_text('schema = "snnkart/study-config/v1"\nvariants = {"T 4" = []}\n')
     with pytest.raises(UsageError, match="variant name 'T 4'"):
         load_study(bad)
+
+
+@pytest.mark.timeout(120)
+def test_a_failed_evaluation_stops_the_commands_still_running(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """One of a study's commands fails while another still runs: the failure is reported and
+    the running one is stopped (SIGTERM; a training run saves on its way out), not left
+    behind."""
+    from snnkart.app import study_eval
+    from snnkart.app.reporter import Silent
+
+    started: list[subprocess.Popen[bytes]] = []
+    real_popen = subprocess.Popen
+
+    def recording_popen(*args: object, **kwargs: object) -> subprocess.Popen[bytes]:
+        proc: subprocess.Popen[bytes] = real_popen(*args, **kwargs)  # type: ignore[call-overload]
+        started.append(proc)
+        return proc
+
+    monkeypatch.setattr(study_eval.subprocess, "Popen", recording_popen)
+    long = ["train", "--env", "grid", "--policy", "ann", "--steps", "100000000",
+            "--out", str(tmp_path / "long")]  # fmt: skip
+    bad = ["eval", str(tmp_path / "no-such-run")]
+    with pytest.raises(UsageError, match="no-such-run"):
+        study_eval._run_all([("long", long), ("bad", bad)], 2, Silent(), "evals")
+    assert len(started) == 2
+    assert all(proc.poll() is not None for proc in started), "a command outlived the study"
+    assert started[0].returncode in (143, -15)

@@ -80,6 +80,24 @@ def result_of(
     )  # fmt: skip
 
 
+def stop_processes(procs: list[subprocess.Popen[bytes]]) -> None:
+    """SIGTERM to each process's group (every ``snnkart`` command takes it like Ctrl-C: a
+    training run saves at its next iteration boundary, an evaluation stops its Lava runtime),
+    also when started with SIGINT ignored, as under ``nohup``; SIGKILL to a group still there
+    after :data:`STOP_GRACE_S`. The processes must have been started in sessions of their own."""
+    for proc in procs:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGTERM)
+    deadline = time.monotonic() + STOP_GRACE_S
+    for proc in procs:
+        try:
+            proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
 class LocalPool:
     """Runs a list of :class:`RunSpec` under ``out`` (``out/<name>``), ``jobs`` at a time."""
 
@@ -121,7 +139,7 @@ class LocalPool:
                         time.sleep(0.1)
             except KeyboardInterrupt:
                 stopped = True
-                self._stop(running)
+                stop_processes([proc for _, proc, _ in running.values()])
                 self._reap(running, results, task, final=True)
                 for spec in pending:
                     results[spec.name] = result_of(
@@ -161,22 +179,6 @@ class LocalPool:
             error = None if status != "failed" else f"exit {code}; see {run_dir / 'launch.log'}"
             results[name] = result_of(spec, run_dir, status, time.perf_counter() - start, error)
             task.advance()
-
-    def _stop(self, running: dict[str, Any]) -> None:
-        """SIGTERM to every running run (``snnkart train`` takes it like Ctrl-C and saves at its
-        next iteration boundary, also when started with SIGINT ignored, as under ``nohup``);
-        SIGKILL to a run still there after :data:`STOP_GRACE_S`."""
-        for _, proc, _ in running.values():
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(proc.pid, signal.SIGTERM)
-        deadline = time.monotonic() + STOP_GRACE_S
-        for _, proc, _ in running.values():
-            try:
-                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                with contextlib.suppress(ProcessLookupError):
-                    os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
 
     def _write(self, results: list[RunResult], interrupted: bool) -> None:
         from snnkart.io import write_json

@@ -8,10 +8,12 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
+from snnkart.app.launch import stop_processes
 from snnkart.app.reporter import Reporter
 from snnkart.errors import UsageError
 
@@ -55,27 +57,38 @@ written and says where)."""
 def _run_all(cmds: list[tuple[str, list[str]]], jobs: int, reporter: Reporter, what: str,
              ok: tuple[int, ...] = (0,)) -> None:  # fmt: skip
     """Run ``snnkart`` commands (name, args), ``jobs`` at a time, one thread each; an exit
-    code outside ``ok`` fails."""
+    code outside ``ok`` fails. Whatever ends the loop (a failure, Ctrl-C, SIGTERM) stops the
+    commands still running first, as the launcher stops its runs: none outlives the study."""
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
     todo = list(cmds)
-    running: list[tuple[str, subprocess.Popen[bytes]]] = []
-    with reporter.progress(what, len(todo)) as task:
-        while todo or running:
-            while todo and len(running) < jobs:
-                name, args = todo.pop(0)
-                proc = subprocess.Popen([sys.executable, "-m", "snnkart.cli", *args], env=env,
-                                        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
-                running.append((name, proc))
-            for name, proc in list(running):
-                code = proc.poll()
-                if code is None:
-                    continue
-                running.remove((name, proc))
-                if code not in ok:
-                    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
-                    raise UsageError(f"{what}: {name} failed: {err[-500:]}")
-                task.advance()
-            time.sleep(0.1)
+    running: list[tuple[str, subprocess.Popen[bytes], IO[bytes]]] = []
+    try:
+        with reporter.progress(what, len(todo)) as task:
+            while todo or running:
+                while todo and len(running) < jobs:
+                    name, args = todo.pop(0)
+                    # stderr to a file, not a pipe, which a chatty command could fill and block on
+                    err: IO[bytes] = tempfile.TemporaryFile()
+                    proc = subprocess.Popen([sys.executable, "-m", "snnkart.cli", *args], env=env,
+                                            stdout=subprocess.DEVNULL, stderr=err,
+                                            start_new_session=True)  # fmt: skip
+                    running.append((name, proc, err))
+                for name, proc, err in list(running):
+                    code = proc.poll()
+                    if code is None:
+                        continue
+                    running.remove((name, proc, err))
+                    with err:
+                        err.seek(0)
+                        text = err.read().decode(errors="replace")
+                    if code not in ok:
+                        raise UsageError(f"{what}: {name} failed (exit {code}): {text[-500:]}")
+                    task.advance()
+                time.sleep(0.1)
+    finally:
+        stop_processes([proc for _, proc, _ in running])
+        for _, _, err in running:
+            err.close()
 
 
 def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
