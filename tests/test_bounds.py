@@ -126,6 +126,24 @@ def test_full_throttle_into_a_wall(env_class, action_mode, track):
     assert obs[ahead] < 0.15, f"ray ahead reads {obs[ahead]} at the crash"
 
 
+@pytest.mark.parametrize("env_class", ENV_CLASSES)
+def test_a_wall_hit_at_speed_costs_more_per_m_s(env_class):
+    """With ``wall_per_m_s``, the crash costs the wall penalty plus that much per m/s of the
+    speed the kart entered the crashing step with (the last speed it reported)."""
+    config = {**LONG, "reward": {**LONG.get("reward", {}), "wall": 1.0, "wall_per_m_s": 2.0}}
+    env = env_class(track="small_S", config=config)
+    env.reset(seed=0)
+    go = action(env, FULL_AHEAD[env_class], (1.0, 0.0))
+    speed = 0.0
+    for _ in range(2_000):
+        _, _, terminated, truncated, info = env.step(go)
+        if terminated or truncated:
+            break
+        speed = info["speed"]
+    assert info["crashed"] and speed > 0.5
+    assert info["reward_terms"]["wall"] == pytest.approx(-(1.0 + 2.0 * speed))
+
+
 @pytest.mark.parametrize(("direction", "ray"), [(1, 4), (2, 12), (3, 0), (4, 8)])
 def test_grid_each_direction_into_a_wall(direction, ray):
     """Grid: holding up, down, left or right ends at a wall, observations in bounds; the

@@ -184,7 +184,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         if self._needs_reset:
             raise RuntimeError("call reset() before step(): the episode has ended or not begun")
-        x0, y0 = self._x, self._y
+        x0, y0, speed0 = self._x, self._y, self.speed_m_s
         align0, align0_cp = self._align, self._geo_k  # set by the last _observe()
         self._apply_action(action)
         self._touched_wall = False
@@ -208,6 +208,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         terms = step_terms(
             rw, progress_px=progress_px, turn=turn, passed=self._passed_this_step,
             finished=finished, crashed=crashed, stood_still=stood_still, stalled=stalled,
+            impact_m_s=speed0,
         )  # fmt: skip
         self._extra_reward_terms(terms)
         self._passed_this_step = 0

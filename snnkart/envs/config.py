@@ -48,6 +48,9 @@ class RewardConfig(_Frozen):
         description="passive penalty per step (a full time limit costs less than a crash)",
     )
     wall: float = Field(1.0, ge=0.0, description="penalty for touching a wall (ends the episode)")
+    wall_per_m_s: float = Field(
+        0.0, ge=0.0, description="more wall penalty per m/s of the speed the kart hit it at"
+    )
     stand_still: float = Field(1.0, ge=0.0, description="penalty for standing still too long")
     steering: float = Field(0.01, ge=0.0, description="steer env: penalty per step at full lock")
     stand_still_radius_m: float = Field(

@@ -23,19 +23,21 @@ def step_terms(
     crashed: bool,
     stood_still: bool,
     stalled: bool = False,
+    impact_m_s: float = 0.0,
 ) -> dict[str, float]:
     """This step's reward terms. ``progress_px``: how much nearer the next checkpoint line the
     kart came along the track; ``turn``: the rise of the cosine between its heading and the way
     there; ``passed``: checkpoints passed in order this step; ``stalled``: the kart has not come
-    nearer the next checkpoint for more than ``stall_grace_steps`` (:class:`Stall`). Finishing
-    pays no progress or heading for the last step."""
+    nearer the next checkpoint for more than ``stall_grace_steps`` (:class:`Stall`);
+    ``impact_m_s``: the speed at which a crashing kart entered the step. Finishing pays no
+    progress or heading for the last step."""
     return {
         "progress": 0.0 if finished else rw.progress * progress_px / PIXELS_PER_METRE,
         "heading": 0.0 if finished else rw.heading * turn,
         "checkpoint": rw.checkpoint * passed,
         "finish": rw.finish if finished else 0.0,
         "time": -rw.time,
-        "wall": -rw.wall if crashed else 0.0,
+        "wall": -(rw.wall + rw.wall_per_m_s * impact_m_s) if crashed else 0.0,
         "stand_still": -rw.stand_still if stood_still else 0.0,
         "stall": -rw.stall if stalled else 0.0,
     }

@@ -90,9 +90,12 @@ def env_spec(env: KartEnv) -> dict[str, Any]:
     }
 
 
-_ADDED_OFF = {"reward": ("stall", ("stall", "stall_grace_steps"))}
+_ADDED_OFF = {
+    "reward": (("stall", ("stall", "stall_grace_steps")), ("wall_per_m_s", ("wall_per_m_s",))),
+}
 """Env config terms added after revision 3 began, by section: (the switch, the fields it
-governs). While the switch is off (0), they change nothing and are left out of the spec."""
+governs) pairs. While a switch is off (0), its fields change nothing and are left out of the
+spec."""
 
 
 def _env_config(env: KartEnv) -> dict[str, Any]:
@@ -100,11 +103,12 @@ def _env_config(env: KartEnv) -> dict[str, Any]:
     for key in _ADDED_UNSET:
         if data.get(key) is None:
             data.pop(key, None)
-    for section, (switch, fields) in _ADDED_OFF.items():
+    for section, added in _ADDED_OFF.items():
         values = data.get(section)
-        if isinstance(values, dict) and not values.get(switch):
-            for field in fields:
-                values.pop(field, None)
+        for switch, fields in added:
+            if isinstance(values, dict) and not values.get(switch):
+                for field in fields:
+                    values.pop(field, None)
     return data
 
 
@@ -117,10 +121,11 @@ def trained_env_config(saved: dict[str, Any]) -> dict[str, Any] | None:
     if not isinstance(data, dict):
         return None
     data = {k: copy.deepcopy(v) for k, v in data.items() if v is not None}  # None: unset
-    for section, (switch, _) in _ADDED_OFF.items():
+    for section, added in _ADDED_OFF.items():
         values = data.get(section)
-        if isinstance(values, dict) and switch not in values:
-            values[switch] = 0.0
+        for switch, _ in added:
+            if isinstance(values, dict) and switch not in values:
+                values[switch] = 0.0
     return data
 
 
