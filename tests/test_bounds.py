@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from snnkart.envs.config import GAZEBO_REWARD, STEER_REWARD
+from snnkart.envs.config import GAZEBO_REWARD, GRID_REWARD, STEER_REWARD
 from snnkart.envs.gazebo import GazeboEnv
 from snnkart.envs.grid import GridEnv
 from snnkart.envs.steer import SteerEnv
@@ -112,15 +112,18 @@ def test_full_throttle_into_a_wall(env_class, action_mode, track):
     env = env_class(track=track, action_mode=action_mode, config=LONG)
     obs, _ = env.reset(seed=0)
     go = action(env, FULL_AHEAD[env_class], (1.0, 0.0))
+    speed = 0.0
     for t in range(2_000):
         obs, reward, terminated, truncated, info = env.step(go)
         assert_in_bounds(env, obs, f"step {t}")
         assert_reward_adds_up(reward, info, f"step {t}")
         if terminated or truncated:
             break
+        speed = info["speed"]
     assert terminated and not truncated
     assert info["crashed"] and not info["lap_finished"]
-    assert info["reward_terms"]["wall"] == -env.config.reward.wall
+    rw = env.config.reward
+    assert info["reward_terms"]["wall"] == pytest.approx(-(rw.wall + rw.wall_per_m_s * speed))
     n = env.config.lidar.n_rays
     ahead = n // 2  # 0 deg: straight ahead, or +x (the grid's "right") in the grid env
     assert obs[ahead] < 0.15, f"ray ahead reads {obs[ahead]} at the crash"
@@ -328,8 +331,8 @@ def test_stalling_costs_per_step_after_the_grace(env_class):
 
     default = env_class(track="small_S")
     partial = env_class(track="small_S", config={"reward": {"time": 0.002}})
-    own = {GazeboEnv: GAZEBO_REWARD, SteerEnv: STEER_REWARD}.get(env_class, {})
-    expected = {"stall": 0.0, "stand_still": 1.0, **own}
+    own = {GridEnv: GRID_REWARD, GazeboEnv: GAZEBO_REWARD, SteerEnv: STEER_REWARD}[env_class]
+    expected = {"stall": 0.0, "stand_still": 1.0, "wall_per_m_s": 0.0, **own}
     for config in (default.config, partial.config):
         assert {k: getattr(config.reward, k) for k in expected} == expected
     assert partial.config.reward.time == 0.002

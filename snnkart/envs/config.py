@@ -165,10 +165,6 @@ class EnvConfig(_Frozen):
     )
 
 
-class GridConfig(EnvConfig):
-    physics: GridPhysics = GridPhysics()
-
-
 GAZEBO_REWARD = {"stall": 0.01}
 """gazebo's reward defaults. Without the stall term, ANN seeds on small_S learned to park
 before a corner until the stand-still limit: seed 7 never finished in 300k steps, seed 10 not
@@ -187,8 +183,25 @@ held-out-7028a5d-ring-steer-before). The stall term alone did not do it on small
 5 never finished, study-43bb29c-small_S-stall0.01). With both, parking costs about 1.5 at
 decision time: small_S ANN 10/10, ring ANN 9/10 (seed 8 now crashes at the first corner
 instead, study-7028a5d-steer-stall0.01-standstill2-ann), SNN 10/10 on both
-(study-7028a5d-steer-stall0.01-standstill2-snn). Grid, where no seed parked, keeps
-:class:`RewardConfig`'s defaults."""
+(study-7028a5d-steer-stall0.01-standstill2-snn)."""
+
+GRID_REWARD = {"wall_per_m_s": 1.0, "stall": 0.01, "stand_still": 2.0}
+"""grid's reward defaults. Grid's kart keeps its momentum (4 m/s, 0.15 m/s of impulse per
+step): on the hairpins track (two U-turns in 1.6 m corridors, never tuned on) it learned to
+race into the U-turns' walls, where braking early was never found: ANN 8/10 seeds finished
+within 300k steps, first at 135k-282k, SNN 1 of the first 6 (held-out-514c598-hairpins-grid,
+with RewardConfig's defaults). A crash costing 1 more per m/s of impact speed pays for every
+bit of braking before a wall: ANN 4/4 of the seeds that had failed or come late (82k-100k).
+The SNN then parked instead (2 of 4 stood still), so it also gets steer's stall term and
+stand-still ending: seeds 1 and 3, which never finished before, first at 90k and 72k
+(screen-fa96cb4-hairpins-grid, -2; 10 seeds per track in held-out-* at the commit that set
+these)."""
+
+
+class GridConfig(EnvConfig):
+    REWARD_DEFAULTS = GRID_REWARD
+    physics: GridPhysics = GridPhysics()
+    reward: RewardConfig = RewardConfig(**GRID_REWARD)
 
 
 class GazeboConfig(EnvConfig):
