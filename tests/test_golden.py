@@ -52,3 +52,18 @@ def test_differences_are_found() -> None:
     assert differences(base, {"a": [1, 2.0], "b": {"c": True}})
     assert differences(base, {"a": [1, 2.0, "x"], "b": {"c": False}})
     assert differences(base, {"a": [1, 2.0, "x"], "b": {}})
+
+
+def test_an_old_export_deploys_in_the_env_it_was_trained_in() -> None:
+    """``OLD_EXPORT``'s grid was trained before grid's reward defaults took the stall term, a
+    stand-still ending of 2 and the speed-scaled crash: deployed, its env has none of them
+    (else its returns would differ from the same run's ``snnkart eval``)."""
+    from snnkart.contract.manifest import Manifest
+    from snnkart.eval.deploy import make_policy_env
+
+    env = make_policy_env(Manifest.read(OLD_EXPORT.with_suffix(".manifest.json")), None, None)
+    try:
+        reward = env.unwrapped.config.reward
+        assert (reward.stall, reward.stand_still, reward.wall_per_m_s) == (0.0, 1.0, 0.0)
+    finally:
+        env.close()

@@ -117,3 +117,31 @@ def test_ctrl_c_saves_the_running_runs_and_leaves_no_worker(tmp_path: Path, sign
     assert [r.status for r in results] == ["done", "done"]
     for r in results:
         assert r.global_step == steps_before[r.name] + BATCH
+
+
+@pytest.mark.timeout(120)
+def test_a_pool_that_fails_stops_its_running_runs(tmp_path: Path) -> None:
+    """Not only Ctrl-C: whatever else ends the pool (here the second run's directory cannot be
+    made) stops the runs already started, which have sessions of their own."""
+    long, second = _specs(100_000)
+    (tmp_path / second.name).write_text("a file where the run directory should go")
+    pool = LocalPool(tmp_path, jobs=2)
+    started: list[subprocess.Popen[bytes]] = []
+    real_start = pool._start
+
+    def recording_start(spec: RunSpec) -> subprocess.Popen[bytes]:
+        proc = real_start(spec)
+        started.append(proc)
+        return proc
+
+    pool._start = recording_start  # type: ignore[method-assign]
+    try:
+        with pytest.raises(FileExistsError):
+            pool.run([long, second], Silent())
+        assert len(started) == 1
+        assert started[0].poll() is not None, "a run outlived the failed pool"
+    finally:
+        for proc in started:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()

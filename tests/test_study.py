@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -252,7 +253,7 @@ def test_a_failed_evaluation_stops_the_commands_still_running(
     """One of a study's commands fails while another still runs: the failure is reported and
     the running one is stopped (SIGTERM; a training run saves on its way out), not left
     behind."""
-    from snnkart.app import study_eval
+    from snnkart.app import launch, study_eval
     from snnkart.app.reporter import Silent
 
     started: list[subprocess.Popen[bytes]] = []
@@ -264,11 +265,18 @@ def test_a_failed_evaluation_stops_the_commands_still_running(
         return proc
 
     monkeypatch.setattr(study_eval.subprocess, "Popen", recording_popen)
+    monkeypatch.setattr(launch, "STOP_GRACE_S", 30.0)
     long = ["train", "--env", "grid", "--policy", "ann", "--steps", "100000000",
             "--out", str(tmp_path / "long")]  # fmt: skip
     bad = ["eval", str(tmp_path / "no-such-run")]
-    with pytest.raises(UsageError, match="no-such-run"):
-        study_eval._run_all([("long", long), ("bad", bad)], 2, Silent(), "evals")
-    assert len(started) == 2
-    assert all(proc.poll() is not None for proc in started), "a command outlived the study"
-    assert started[0].returncode in (143, -15)
+    try:
+        with pytest.raises(UsageError, match="no-such-run"):
+            study_eval._run_all([("long", long), ("bad", bad)], 2, Silent(), "evals")
+        assert len(started) == 2
+        assert all(proc.poll() is not None for proc in started), "a command outlived the study"
+        assert started[0].returncode in (143, -15)
+    finally:  # whatever failed, nothing is left running (the commands have their own sessions)
+        for proc in started:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()

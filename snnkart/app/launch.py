@@ -146,6 +146,9 @@ class LocalPool:
                         spec, self.out / spec.name, "interrupted", 0.0, None
                     )
                 raise
+            except BaseException:  # any other failure: no run outlives the pool either
+                stop_processes([proc for _, proc, _ in running.values()])
+                raise
             finally:
                 self._write([results[s.name] for s in specs if s.name in results], stopped)
         return [results[s.name] for s in specs]

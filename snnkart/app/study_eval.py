@@ -69,9 +69,13 @@ def _run_all(cmds: list[tuple[str, list[str]]], jobs: int, reporter: Reporter, w
                     name, args = todo.pop(0)
                     # stderr to a file, not a pipe, which a chatty command could fill and block on
                     err: IO[bytes] = tempfile.TemporaryFile()
-                    proc = subprocess.Popen([sys.executable, "-m", "snnkart.cli", *args], env=env,
-                                            stdout=subprocess.DEVNULL, stderr=err,
-                                            start_new_session=True)  # fmt: skip
+                    try:
+                        proc = subprocess.Popen([sys.executable, "-m", "snnkart.cli", *args],
+                                                env=env, stdout=subprocess.DEVNULL, stderr=err,
+                                                start_new_session=True)  # fmt: skip
+                    except BaseException:
+                        err.close()
+                        raise
                     running.append((name, proc, err))
                 for name, proc, err in list(running):
                     code = proc.poll()
@@ -79,10 +83,10 @@ def _run_all(cmds: list[tuple[str, list[str]]], jobs: int, reporter: Reporter, w
                         continue
                     running.remove((name, proc, err))
                     with err:
-                        err.seek(0)
-                        text = err.read().decode(errors="replace")
-                    if code not in ok:
-                        raise UsageError(f"{what}: {name} failed (exit {code}): {text[-500:]}")
+                        if code not in ok:
+                            err.seek(max(0, err.seek(0, os.SEEK_END) - 500))
+                            text = err.read().decode(errors="replace")
+                            raise UsageError(f"{what}: {name} failed (exit {code}): {text}")
                     task.advance()
                 time.sleep(0.1)
     finally:

@@ -76,7 +76,7 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
     """The env the manifest describes (optionally another track or env), checked to fit;
     ``track`` None: the manifest's own (see :func:`resolve_track`)."""
     from snnkart.envs import make, resolve_env_name
-    from snnkart.envs.spec import fit_problem, revision_mismatch
+    from snnkart.envs.spec import fit_problem, revision_mismatch, trained_env_config
     from snnkart.envs.tracks import TrackError
 
     spec = manifest.env
@@ -100,7 +100,8 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
         "action_mode": spec.get("action_mode", manifest.action_mode),
     }
     if spec.get("env_config") and resolved == spec.get("env"):
-        kwargs["config"] = spec["env_config"]
+        # the env it was trained in: terms added since, or on by default now, stay off
+        kwargs["config"] = trained_env_config(spec)
     try:
         gym_env = make(resolved, **kwargs)
     except (TrackError, ValueError, TypeError) as exc:
