@@ -103,6 +103,23 @@ def test_random_rollout_stays_in_bounds(env_class, action_mode):
 # -- extreme driving ----------------------------------------------------------------------------
 
 
+def full_ahead_into_a_wall(env, env_class, each_step=None):
+    """Hold full ahead from the spawn until the episode ends (``each_step(t, obs, reward,
+    info)`` sees every step): the last observation and info, whether the end was a
+    termination, and the speed the kart entered the last step with (the one it reported)."""
+    env.reset(seed=0)
+    go = action(env, FULL_AHEAD[env_class], (1.0, 0.0))
+    speed = 0.0
+    for t in range(2_000):
+        obs, reward, terminated, truncated, info = env.step(go)
+        if each_step is not None:
+            each_step(t, obs, reward, info)
+        if terminated or truncated:
+            return obs, info, terminated, speed
+        speed = info["speed"]
+    raise AssertionError("full ahead did not end the episode in 2,000 steps")
+
+
 @pytest.mark.parametrize("track", ["big_S", "small_S"])
 @pytest.mark.parametrize("action_mode", ACTION_MODES)
 @pytest.mark.parametrize("env_class", ENV_CLASSES)
@@ -110,17 +127,13 @@ def test_full_throttle_into_a_wall(env_class, action_mode, track):
     """Full ahead from the spawn ends in a wall crash; observations stay in bounds throughout
     and the last one shows the wall right in front (egocentric envs: the straight-ahead ray)."""
     env = env_class(track=track, action_mode=action_mode, config=LONG)
-    obs, _ = env.reset(seed=0)
-    go = action(env, FULL_AHEAD[env_class], (1.0, 0.0))
-    speed = 0.0
-    for t in range(2_000):
-        obs, reward, terminated, truncated, info = env.step(go)
+
+    def in_bounds(t, obs, reward, info):
         assert_in_bounds(env, obs, f"step {t}")
         assert_reward_adds_up(reward, info, f"step {t}")
-        if terminated or truncated:
-            break
-        speed = info["speed"]
-    assert terminated and not truncated
+
+    obs, info, terminated, speed = full_ahead_into_a_wall(env, env_class, in_bounds)
+    assert terminated
     assert info["crashed"] and not info["lap_finished"]
     rw = env.config.reward
     assert info["reward_terms"]["wall"] == pytest.approx(-(rw.wall + rw.wall_per_m_s * speed))
@@ -133,16 +146,9 @@ def test_full_throttle_into_a_wall(env_class, action_mode, track):
 def test_a_wall_hit_at_speed_costs_more_per_m_s(env_class):
     """With ``wall_per_m_s``, the crash costs the wall penalty plus that much per m/s of the
     speed the kart entered the crashing step with (the last speed it reported)."""
-    config = {**LONG, "reward": {**LONG.get("reward", {}), "wall": 1.0, "wall_per_m_s": 2.0}}
+    config = {**LONG, "reward": {"wall": 1.0, "wall_per_m_s": 2.0}}
     env = env_class(track="small_S", config=config)
-    env.reset(seed=0)
-    go = action(env, FULL_AHEAD[env_class], (1.0, 0.0))
-    speed = 0.0
-    for _ in range(2_000):
-        _, _, terminated, truncated, info = env.step(go)
-        if terminated or truncated:
-            break
-        speed = info["speed"]
+    _, info, _, speed = full_ahead_into_a_wall(env, env_class)
     assert info["crashed"] and speed > 0.5
     assert info["reward_terms"]["wall"] == pytest.approx(-(1.0 + 2.0 * speed))
 
