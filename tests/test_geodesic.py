@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,11 +12,13 @@ import pytest
 from snnkart.envs.constants import KART_RADIUS_PX
 from snnkart.envs.gazebo import GazeboEnv
 from snnkart.envs.geodesic import geodesic_field
+from snnkart.envs.geometry import segment_distance
 from snnkart.envs.grid import GridEnv
 from snnkart.envs.steer import SteerEnv
 from snnkart.envs.tracks import Checkpoint, Track, TrackError, load_track, parse_track
 
 R = KART_RADIUS_PX
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def make_track(walls, checkpoints, spawn, name="t") -> Track:
@@ -248,3 +252,34 @@ def test_grid_has_no_heading_term():
         assert info["reward_terms"]["heading"] == 0.0
         if terminated or truncated:
             env.reset()
+
+
+RING = "benchmarks/tracks/ring.toml"
+# the ring's corridor centreline, one lap from the spawn (anticlockwise on screen)
+RING_LAP = [(260, 660), (660, 660), (660, 160), (160, 160), (160, 660), (260, 660)]
+
+
+@pytest.mark.parametrize("env_class", [GridEnv, SteerEnv])
+def test_on_a_loop_passing_a_checkpoint_pays_no_windfall(env_class):
+    """Along the ring's centreline, as the env counts it (a line is passed when the kart
+    touches it; the progress of a step is the drop in the distance to the next line, the old
+    position measured on the new line's field), no step earns more progress than its length.
+    Before the fix, the kart touching a line with its centre short of it was measured the way
+    round the loop: -8 m, then +8 m as the centre crossed."""
+    env = env_class(track=str(ROOT / RING))
+    track = env.track
+    field = geodesic_field(track, clearance=env.route_clearance())
+    step = 4.0
+    points = []
+    for (x0, y0), (x1, y1) in itertools.pairwise(RING_LAP):
+        n = int(math.hypot(x1 - x0, y1 - y0) / step)
+        points += [(x0 + (x1 - x0) * i / n, y0 + (y1 - y0) * i / n) for i in range(n)]
+    k, passed, worst = 0, 0, 0.0
+    for (x0, y0), (x1, y1) in itertools.pairwise(points):
+        cp = track.checkpoints[k]
+        if k < len(track.checkpoints) - 1 and segment_distance(x1, y1, *cp.a, *cp.b) <= R:
+            k, passed = k + 1, passed + 1
+        progress = field.distance(k, x0, y0) - field.distance(k, x1, y1)
+        worst = max(worst, abs(progress))
+    assert passed == len(track.checkpoints) - 1
+    assert worst <= step * 1.1, f"a step of {step} px earned {worst:.1f} px of progress"

@@ -27,7 +27,12 @@ length L would leave one end within L/2 of it.
 The sources of field k are the road cells where the kart touches checkpoint line k (within
 one kart radius of it), and moves across line k-1 are removed, so the distance never takes a
 way back through the checkpoint just passed (it would on a loop whose checkpoints are more
-than half a lap apart); cells behind that line then get the way back across it.
+than half a lap apart); cells behind that line then get the way back across it. On a loop,
+the cells behind the line are not cut off: they reach line k the way round the other way.
+Those just before line k-1, where a kart touching it has passed it with its centre still
+short of it, take the way forward across it instead (:func:`_just_passed`); else the
+distance would jump by most of a lap as the centre crosses, a windfall of progress at every
+checkpoint that kept grid karts from ever finishing the ring track (issue 17).
 """
 
 from __future__ import annotations
@@ -146,6 +151,78 @@ def _extend(d: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.nd
     return dijkstra(graph.tocsr(), directed=False, indices=n)[:n]  # type: ignore[no-any-return]
 
 
+PASSED_BAND_PX = 2.0 * KART_RADIUS_PX
+"""How far before a checkpoint line the next line's field takes the way forward across it: a
+kart touching the line is within one radius of it, and the step before, and the cells of the
+bilinear lookup, lie within another (a kart moves at most 7 px a step)."""
+
+
+def _nearest(
+    fx: np.ndarray, fy: np.ndarray, drive: np.ndarray, p: tuple[float, float]
+) -> np.ndarray:
+    """The road cell nearest to point ``p``, as an index array of one."""
+    d2 = np.where(drive, (fx - p[0]) ** 2 + (fy - p[1]) ** 2, np.inf)
+    return np.array([int(np.argmin(d2))])
+
+
+def _just_passed(
+    track: Track,
+    fx: np.ndarray,
+    fy: np.ndarray,
+    drive: np.ndarray,
+    seg: tuple[float, float, float, float],
+    start: np.ndarray,
+    edges: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """The road cells just before checkpoint line ``seg``, on the side the kart comes from
+    (from the cells ``start``, over ``edges``), within :data:`PASSED_BAND_PX` of the line and
+    not behind a wall from it; and the road cells just beyond it, where the way to the line
+    after it starts. None for the first when no side can be told.
+
+    The kart passes a line when it touches it, with its centre up to a radius before it. The
+    next line's field takes no way across the line just passed, so on a loop these cells
+    would get the way round the other way (most of a lap, and a windfall of progress once the
+    centre crosses); they take the way forward across the line instead.
+    """
+    ax, ay, bx, by = seg
+    dx, dy = bx - ax, by - ay
+    side = np.sign(dx * (fy - ay) - dy * (fx - ax))
+    t = ((fx - ax) * dx + (fy - ay) * dy) / max(dx * dx + dy * dy, 1e-12)
+    band = drive & (t >= 0.0) & (t <= 1.0) & (segment_distance(fx, fy, *seg) <= PASSED_BAND_PX)
+    band_cells = np.flatnonzero(band)
+    px, py = ax + t[band_cells] * dx, ay + t[band_cells] * dy
+    walled = np.zeros(band_cells.shape, dtype=bool)
+    for wall in track.segments:
+        walled |= segments_cross(fx[band_cells], fy[band_cells], px, py, tuple(wall))
+    band_cells = band_cells[~walled]
+    touching = drive & (segment_distance(fx, fy, *seg) <= KART_RADIUS_PX)
+    ways = []
+    for s in (1.0, -1.0):
+        seed = np.full(fx.shape, np.inf)
+        seed[touching & (side == s)] = 0.0
+        ways.append(_extend(seed, *edges)[start].min() if np.isfinite(seed).any() else np.inf)
+    if not np.isfinite(min(ways)) or ways[0] == ways[1]:
+        return None, np.flatnonzero(touching)
+    approach = 1.0 if ways[0] < ways[1] else -1.0
+    return band_cells[side[band_cells] == approach], band_cells[side[band_cells] == -approach]
+
+
+def _touching(
+    track: Track, k: int, fx: np.ndarray, fy: np.ndarray, drive: np.ndarray, clearance: float
+) -> np.ndarray:
+    """The road cells where the kart touches checkpoint line ``k`` (the sources of its field)."""
+    cp = track.checkpoints[k]
+    touching = (segment_distance(fx, fy, *cp.a, *cp.b) <= KART_RADIUS_PX) & drive
+    if not touching.any():
+        raise TrackError(
+            f"track {track.name!r} ({track.source}): checkpoint {k + 1} leaves no room for "
+            f"the kart to touch it {clearance:.1f} px from every wall (the kart's radius, "
+            "or the car's turning radius in steer); move the line away from the walls or "
+            "widen the track there"
+        )
+    return np.flatnonzero(touching)
+
+
 @functools.lru_cache(maxsize=8)
 def geodesic_field(
     track: Track, cell: float = CELL_PX, clearance: float = KART_RADIUS_PX
@@ -208,27 +285,25 @@ def geodesic_field(
 
     n = int(free.sum())
     dist = np.full((len(track.checkpoints), rows, cols), np.nan)
+    start = _nearest(fx, fy, drive, track.spawn_position)  # where the way to line 0 starts
+    passed: np.ndarray | None = None  # cells where the kart has just touched line k-1
     for k, cp in enumerate(track.checkpoints):
         seg_k = (*cp.a, *cp.b)
-        sources = np.flatnonzero((segment_distance(fx, fy, *seg_k) <= KART_RADIUS_PX) & drive)
-        if sources.size == 0:
-            raise TrackError(
-                f"track {track.name!r} ({track.source}): checkpoint {k + 1} leaves no room for "
-                f"the kart to touch it {clearance:.1f} px from every wall (the kart's radius, "
-                "or the car's turning radius in steer); move the line away from the walls or "
-                "widen the track there"
-            )
+        sources = _touching(track, k, fx, fy, drive, clearance)
         keep = np.ones(a.shape, dtype=bool)
         if k > 0:
             prev = track.checkpoints[k - 1]
             keep = ~segments_cross(fx[a], fy[a], fx[b], fy[b], (*prev.a, *prev.b))
-        start = np.full(n, np.inf)
-        start[sources] = 0.0
         ok = keep & road
-        d = _extend(start, a[ok], b[ok], w[ok])
+        start_d = np.full(n, np.inf)
+        start_d[sources] = 0.0
+        d = _extend(start_d, a[ok], b[ok], w[ok])
+        if passed is not None:
+            d[passed] = np.inf  # on a loop, the way round the other way: see _just_passed
         # Behind the checkpoint just passed, the way leads back across it: a kart that
         # overshoots still has a distance to shrink (and a direction to follow).
         d = np.where(np.isfinite(d), d, _extend(d, a[road], b[road], w[road]))
+        passed, start = _just_passed(track, fx, fy, drive, seg_k, start, (a[ok], b[ok], w[ok]))
         # The margin (free, but nearer a wall than the clearance) takes the distance of its
         # nearest road cell plus the straight way there, so the bilinear lookup has four
         # corners even when the kart grazes a wall. No way runs along the margin: it would
