@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from pathlib import Path
@@ -255,19 +256,34 @@ def test_grid_has_no_heading_term():
 
 
 RING = "benchmarks/tracks/ring.toml"
-# the ring's corridor centreline, one lap from the spawn (anticlockwise on screen)
-RING_LAP = [(260, 660), (660, 660), (660, 160), (160, 160), (160, 660), (260, 660)]
+# the ring's corridor centreline from the spawn (anticlockwise on screen), a lap and a bit
+RING_LAP = [(260, 660), (660, 660), (660, 160), (160, 160), (160, 660), (340, 660)]
 
 
+def ring_variant(x: float) -> Track:
+    """The ring with one more line at ``x``, just after its last corner, where the nearest
+    cells on either side are equally far from the way there, and the finish beyond the
+    spawn."""
+    ring = load_track(ROOT / RING)
+    lines = (((x, 600.0), (x, 720.0)), ((320.0, 600.0), (320.0, 720.0)))
+    cps = ring.checkpoints[:4] + tuple(Checkpoint(a, b) for a, b in lines)
+    variant = dataclasses.replace(ring, checkpoints=cps, name="ring-variant")
+    return parse_track(variant.to_toml(), source="ring-variant")
+
+
+@pytest.mark.parametrize(
+    "variant", [None, 198.0, 200.0], ids=["ring", "line-off-grid", "line-on-grid"]
+)
 @pytest.mark.parametrize("env_class", [GridEnv, SteerEnv])
-def test_on_a_loop_passing_a_checkpoint_pays_no_windfall(env_class):
+def test_on_a_loop_passing_a_checkpoint_pays_no_windfall(env_class, variant):
     """Along the ring's centreline, as the env counts it (a line is passed when the kart
     touches it; the progress of a step is the drop in the distance to the next line, the old
     position measured on the new line's field), no step earns more progress than its length.
     Before the fix, the kart touching a line with its centre short of it was measured the way
-    round the loop: -8 m, then +8 m as the centre crossed."""
-    env = env_class(track=str(ROOT / RING))
-    track = env.track
+    round the loop: about -1 step per step, then +8 m or more as the centre crossed. The
+    variants add a line just after a corner, between the field's 4 px cells or on them."""
+    track = load_track(ROOT / RING) if variant is None else ring_variant(variant)
+    env = env_class(track=track)
     field = geodesic_field(track, clearance=env.route_clearance())
     step = 4.0
     points = []

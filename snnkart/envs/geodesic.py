@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,8 +76,7 @@ class GeodesicField:
         """Geodesic distance (px) from (x, y) to checkpoint line ``k``, bilinear between cells.
 
         Corners that are not free (or unreachable) are left out of the interpolation; NaN when
-        none of the four is usable (the kart is inside a wall or behind the checkpoint it
-        just passed on a track that is not a loop).
+        none of the four is usable (the kart is inside a wall, or cannot reach the line).
         """
         return self._sample(self.dist[k], x, y)
 
@@ -154,7 +154,9 @@ def _extend(d: np.ndarray, a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.nd
 PASSED_BAND_PX = 2.0 * KART_RADIUS_PX
 """How far before a checkpoint line the next line's field takes the way forward across it: a
 kart touching the line is within one radius of it, and the step before, and the cells of the
-bilinear lookup, lie within another (a kart moves at most 7 px a step)."""
+bilinear lookup, lie within another (a kart at the default top speed, 4 m/s, moves 7 px a
+step). A kart that touches the line and then backs out of the band is measured the way
+round the loop again: a drop in progress it wins back on return, never a net gain."""
 
 
 def _nearest(
@@ -167,44 +169,55 @@ def _nearest(
 
 def _just_passed(
     track: Track,
-    fx: np.ndarray,
-    fy: np.ndarray,
-    drive: np.ndarray,
-    seg: tuple[float, float, float, float],
+    k: int,
+    cells: tuple[np.ndarray, np.ndarray, np.ndarray],
     start: np.ndarray,
     edges: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[np.ndarray | None, np.ndarray]:
-    """The road cells just before checkpoint line ``seg``, on the side the kart comes from
+    """The road cells just before checkpoint line ``k``, on the side the kart comes from
     (from the cells ``start``, over ``edges``), within :data:`PASSED_BAND_PX` of the line and
-    not behind a wall from it; and the road cells just beyond it, where the way to the line
-    after it starts. None for the first when no side can be told.
+    not behind a wall from it, the cells on the line included; and the road cells just
+    beyond it, where the way to the line after it starts. None for the first when no side
+    can be told (with a warning).
 
     The kart passes a line when it touches it, with its centre up to a radius before it. The
     next line's field takes no way across the line just passed, so on a loop these cells
     would get the way round the other way (most of a lap, and a windfall of progress once the
-    centre crosses); they take the way forward across the line instead.
+    centre crosses); they take the way forward across the line instead. The side the kart
+    comes from is the one whose touching cells are nearer ``start`` on average (the nearest
+    ones tie where the way arrives along the line, just after a corner).
     """
-    ax, ay, bx, by = seg
+    fx, fy, drive = cells
+    cp = track.checkpoints[k]
+    (ax, ay), (bx, by) = cp.a, cp.b
     dx, dy = bx - ax, by - ay
     side = np.sign(dx * (fy - ay) - dy * (fx - ax))
     t = ((fx - ax) * dx + (fy - ay) * dy) / max(dx * dx + dy * dy, 1e-12)
-    band = drive & (t >= 0.0) & (t <= 1.0) & (segment_distance(fx, fy, *seg) <= PASSED_BAND_PX)
-    band_cells = np.flatnonzero(band)
-    px, py = ax + t[band_cells] * dx, ay + t[band_cells] * dy
-    walled = np.zeros(band_cells.shape, dtype=bool)
+    gap = segment_distance(fx, fy, ax, ay, bx, by)
+    band = np.flatnonzero(drive & (t >= 0.0) & (t <= 1.0) & (gap <= PASSED_BAND_PX))
+    px, py = ax + t[band] * dx, ay + t[band] * dy
+    walled = np.zeros(band.shape, dtype=bool)
     for wall in track.segments:
-        walled |= segments_cross(fx[band_cells], fy[band_cells], px, py, tuple(wall))
-    band_cells = band_cells[~walled]
-    touching = drive & (segment_distance(fx, fy, *seg) <= KART_RADIUS_PX)
-    ways = []
-    for s in (1.0, -1.0):
-        seed = np.full(fx.shape, np.inf)
-        seed[touching & (side == s)] = 0.0
-        ways.append(_extend(seed, *edges)[start].min() if np.isfinite(seed).any() else np.inf)
-    if not np.isfinite(min(ways)) or ways[0] == ways[1]:
-        return None, np.flatnonzero(touching)
-    approach = 1.0 if ways[0] < ways[1] else -1.0
-    return band_cells[side[band_cells] == approach], band_cells[side[band_cells] == -approach]
+        walled |= segments_cross(fx[band], fy[band], px, py, tuple(wall))
+    band = band[~walled]
+    seed = np.full(fx.shape, np.inf)
+    seed[start] = 0.0
+    from_start = _extend(seed, *edges)
+    touching = band[gap[band] <= KART_RADIUS_PX]
+    ways = [from_start[touching[side[touching] == s]] for s in (1.0, -1.0)]
+    means = [float(w[np.isfinite(w)].mean()) if np.isfinite(w).any() else np.inf for w in ways]
+    if not np.isfinite(min(means)) or means[0] == means[1]:
+        warnings.warn(
+            f"track {track.name!r} ({track.source}): cannot tell from which side the kart "
+            f"reaches checkpoint {k + 1}; on a loop its progress may jump as the kart passes it",
+            stacklevel=3,
+        )
+        return None, np.flatnonzero(drive & (gap <= KART_RADIUS_PX))
+    approach = 1.0 if means[0] < means[1] else -1.0
+    beyond = band[side[band] == -approach]
+    if beyond.size == 0:
+        beyond = np.flatnonzero(drive & (gap <= KART_RADIUS_PX))
+    return band[side[band] != -approach], beyond
 
 
 def _touching(
@@ -287,8 +300,7 @@ def geodesic_field(
     dist = np.full((len(track.checkpoints), rows, cols), np.nan)
     start = _nearest(fx, fy, drive, track.spawn_position)  # where the way to line 0 starts
     passed: np.ndarray | None = None  # cells where the kart has just touched line k-1
-    for k, cp in enumerate(track.checkpoints):
-        seg_k = (*cp.a, *cp.b)
+    for k in range(len(track.checkpoints)):
         sources = _touching(track, k, fx, fy, drive, clearance)
         keep = np.ones(a.shape, dtype=bool)
         if k > 0:
@@ -303,7 +315,8 @@ def geodesic_field(
         # Behind the checkpoint just passed, the way leads back across it: a kart that
         # overshoots still has a distance to shrink (and a direction to follow).
         d = np.where(np.isfinite(d), d, _extend(d, a[road], b[road], w[road]))
-        passed, start = _just_passed(track, fx, fy, drive, seg_k, start, (a[ok], b[ok], w[ok]))
+        if k + 1 < len(track.checkpoints):
+            passed, start = _just_passed(track, k, (fx, fy, drive), start, (a[ok], b[ok], w[ok]))
         # The margin (free, but nearer a wall than the clearance) takes the distance of its
         # nearest road cell plus the straight way there, so the bilinear lookup has four
         # corners even when the kart grazes a wall. No way runs along the margin: it would
