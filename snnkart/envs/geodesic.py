@@ -171,14 +171,15 @@ def _just_passed(
     track: Track,
     k: int,
     cells: tuple[np.ndarray, np.ndarray, np.ndarray],
+    sources: np.ndarray,
     start: np.ndarray,
     edges: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[np.ndarray | None, np.ndarray]:
     """The road cells just before checkpoint line ``k``, on the side the kart comes from
     (from the cells ``start``, over ``edges``), within :data:`PASSED_BAND_PX` of the line and
     not behind a wall from it, the cells on the line included; and the road cells just
-    beyond it, where the way to the line after it starts. None for the first when no side
-    can be told (with a warning).
+    beyond it, where the way to the line after it starts (the line's ``sources``, the cells
+    touching it, where no side can be told: then None for the first, with a warning).
 
     The kart passes a line when it touches it, with its centre up to a radius before it. The
     next line's field takes no way across the line just passed, so on a loop these cells
@@ -212,12 +213,10 @@ def _just_passed(
             f"reaches checkpoint {k + 1}; on a loop its progress may jump as the kart passes it",
             stacklevel=3,
         )
-        return None, np.flatnonzero(drive & (gap <= KART_RADIUS_PX))
+        return None, sources
     approach = 1.0 if means[0] < means[1] else -1.0
     beyond = band[side[band] == -approach]
-    if beyond.size == 0:
-        beyond = np.flatnonzero(drive & (gap <= KART_RADIUS_PX))
-    return band[side[band] != -approach], beyond
+    return band[side[band] != -approach], beyond if beyond.size else sources
 
 
 def _touching(
@@ -316,7 +315,8 @@ def geodesic_field(
         # overshoots still has a distance to shrink (and a direction to follow).
         d = np.where(np.isfinite(d), d, _extend(d, a[road], b[road], w[road]))
         if k + 1 < len(track.checkpoints):
-            passed, start = _just_passed(track, k, (fx, fy, drive), start, (a[ok], b[ok], w[ok]))
+            kept = (a[ok], b[ok], w[ok])
+            passed, start = _just_passed(track, k, (fx, fy, drive), sources, start, kept)
         # The margin (free, but nearer a wall than the clearance) takes the distance of its
         # nearest road cell plus the straight way there, so the bilinear lookup has four
         # corners even when the kart grazes a wall. No way runs along the margin: it would
