@@ -23,6 +23,7 @@ from snnkart.envs.geometry import nearest_point
 from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.observation import ObsField, observation_layout, observation_space
 from snnkart.envs.reward import Stall, StandStill, step_terms
+from snnkart.envs.starts import pick_start
 from snnkart.envs.tracks import Track, load_track
 from snnkart.envs.world import build_world
 from snnkart.errors import EnvError
@@ -58,9 +59,11 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     _last_action: Any
     _last_terms: dict[str, float]
     _episode_return: float
+    _from_spawn: bool  # a finish is a lap only from the spawn (snnkart.envs.starts)
     env_name: ClassVar[str] = "kart"
     discrete_actions: ClassVar[int] = 0  # the size of the discrete action space
     egocentric: ClassVar[bool] = True
+    start_spread: float = 0.0  # training: this share of episodes starts past a checkpoint
 
     def __init__(
         self,
@@ -241,11 +244,10 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self._reset_state()
-        jitter = self.track.spawn_jitter
-        dx, dy = self.np_random.uniform(-jitter, jitter, size=2) if jitter > 0 else (0.0, 0.0)
-        sx, sy = self.track.spawn_position
-        self._x, self._y = sx + float(dx), sy + float(dy)
-        self._heading = self.track.spawn_heading if self.egocentric else 0.0
+        start = pick_start(self.np_random, self.track, self._geodesic, self.start_spread)
+        self._x, self._y, self._next_cp = start.x, start.y, start.next_cp
+        self._heading = start.heading if self.egocentric else 0.0
+        self._from_spawn = start.next_cp == 0
         body = self._body
         body.position = (self._x, self._y)
         body.angle = self._heading
@@ -296,7 +298,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     def _reset_state(self) -> None:
         self._x, self._y = self.track.spawn_position
         self._heading = 0.0
-        self._next_cp = 0
+        self._next_cp, self._from_spawn = 0, True
         self._finished = False
         self._geo_k, self._geo_d = -1, math.nan  # cached distance of the last position
         self._align = 0.0  # checkpoint_cos of the last observation
@@ -341,8 +343,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             "checkpoint": self._next_cp,
             "checkpoints_total": self._n_checkpoints,
             "checkpoint_times": tuple(self._checkpoint_times),
-            "lap_finished": self._finished,
-            "lap_time": elapsed if self._finished else None,
+            "lap_finished": self._finished and self._from_spawn,
+            "lap_time": elapsed if self._finished and self._from_spawn else None,
             "elapsed_time": elapsed,
             "crashed": crashed,
             "stood_still": stood_still,

@@ -66,6 +66,13 @@ class PPOConfig(_Section):
     norm_obs: bool = Field(True, description="running mean/std observation normalisation")
     clip_obs: float = Field(10.0, gt=0.0)
     init_log_std: float = Field(-0.5, description="continuous actions: initial log std")
+    start_spread: float = Field(
+        0.0,
+        ge=0.0,
+        lt=1.0,
+        description="share of training episodes that start just past a random checkpoint "
+        "instead of at the spawn (not laps; see snnkart.envs.starts)",
+    )
 
 
 class ANNConfig(_Section):

@@ -92,6 +92,8 @@ class Rollout:
             autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
         )
         self.karts: list[KartEnv] = [e.unwrapped for e in self.envs.envs]  # type: ignore[misc]
+        for kart in self.karts:
+            kart.start_spread = cfg.ppo.start_spread
         steps, envs = cfg.ppo.num_steps, cfg.ppo.num_envs
         self.positions = np.zeros((steps, envs, 2), dtype=np.float32)  # trajectories
         self.ends = np.zeros((steps, envs), dtype=bool)
