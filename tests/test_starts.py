@@ -89,9 +89,9 @@ def test_a_finish_from_a_spread_start_pays_its_bonus_but_is_not_a_lap() -> None:
 
 
 def test_training_envs_take_start_spread_from_the_ppo_config() -> None:
-    cfg = load_config(sets=["env=grid", "policy=ann", "ppo.num_envs=2", "ppo.start_spread=0.5"])
+    cfg = load_config(sets=["env=grid", "policy=ann", "ppo.num_envs=2", "ppo.start_spread=0.3"])
     rollout = Rollout(cfg, make_env("grid", "small_S").unwrapped.track)
     try:
-        assert [k.start_spread for k in rollout.karts] == [0.5, 0.5]
+        assert [k.start_spread for k in rollout.karts] == [0.3, 0.3]
     finally:
         rollout.close()
