@@ -35,7 +35,7 @@ def run_training(cfg: TrainConfig, run_dir: Path, reporter: Reporter, resume: bo
         ended = f"stopped early ({stop.checks} checks in a row at >= {stop.success:.0%} success)"
     reporter.message(
         f"{ended} at step {result.global_step:,}: "
-        f"{result.finishes:,} finished episodes of {result.episodes:,}; first finish at "
+        f"{result.finishes:,} laps finished in {result.episodes:,} episodes; first finish at "
         f"{'never' if first < 0 else f'step {first:,}'}"
     )
     reporter.message(

@@ -372,7 +372,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
     @property
     def lap_finished(self) -> bool:
-        return self._finished
+        return self._finished and self._from_spawn
 
     @property
     def elapsed_time(self) -> float:

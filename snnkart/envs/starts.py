@@ -54,15 +54,19 @@ def pick_start(
 
 
 def _free_middle(track: Track, field: GeodesicField, k: int) -> tuple[float, float]:
-    """The middle of the part of checkpoint line ``k - 1`` from which line ``k`` can be
-    reached (a line drawn past the walls has its ends inside them)."""
+    """The middle of the longest stretch of checkpoint line ``k - 1`` from which line ``k``
+    can be reached (a line drawn past the walls has its ends inside them, or in another
+    corridor)."""
     line = track.checkpoints[k - 1]
-    ts = np.linspace(0.0, 1.0, LINE_SAMPLES)
-    points = [
-        (line.a[0] + t * (line.b[0] - line.a[0]), line.a[1] + t * (line.b[1] - line.a[1]))
-        for t in ts
-    ]
-    free = [p for p in points if math.isfinite(field.distance(k, *p))]
-    if not free:
+    (ax, ay), (bx, by) = line.a, line.b
+    points = [(ax + t * (bx - ax), ay + t * (by - ay)) for t in np.linspace(0, 1, LINE_SAMPLES)]
+    free = [math.isfinite(field.distance(k, *p)) for p in points]
+    best, start = (0, 0), None  # (length, first index) of the longest free stretch
+    for i, ok in enumerate([*free, False]):
+        if ok and start is None:
+            start = i
+        elif not ok and start is not None:
+            best, start = max(best, (i - start, start)), None
+    if best[0] == 0:
         raise ValueError(f"checkpoint {k} cannot be reached from any point of line {k - 1}")
-    return free[len(free) // 2]
+    return points[best[1] + best[0] // 2]

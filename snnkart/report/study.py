@@ -58,10 +58,11 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
              f"{len(study['seeds'])} seeds per cell, at most {study['steps']:,} env steps per run. "
              "Medians over seeds with (min–max); `>cap`: not reached within the cap; "
              "\"k/n seeds\": only k of the n seeds got there. "
-             f"\"{n} finishes\": the step at which the run's cumulative finished training episodes "
-             f"reached {n}. Evaluation: {study['eval_episodes']} seeded episodes, ANNs in torch, "
-             "SNNs exported to NIR on the numpy reference in fixed point. ✓/✗: better/worse than "
-             "the original (one run per cell; shown for small_S at 300 finishes).", ""]  # fmt: skip
+             f"\"{n} finishes\": the step at which the run's cumulative laps (finished training "
+             f"episodes that started at the spawn) reached {n}. Evaluation: "
+             f"{study['eval_episodes']} seeded episodes, ANNs in torch, SNNs exported to NIR on "
+             "the numpy reference in fixed point. ✓/✗: better/worse than the original (one run "
+             "per cell; shown for small_S at 300 finishes).", ""]  # fmt: skip
     if any(r.get("eval_backend", "").startswith("torch (cuba") for r in record["runs"]):
         lines += ["Current-based LIF (cuba) SNNs are evaluated in torch: their NIR export comes "
                   "with issue 18.", ""]  # fmt: skip
@@ -190,7 +191,7 @@ def write_plots(record: dict[str, Any], out: Path) -> list[Path]:
 
     study, runs, written = record["study"], record["runs"], []
     for track in _tracks(record):
-        for key, ylabel in (("finishes", "cumulative finished episodes"),
+        for key, ylabel in (("finishes", "cumulative laps finished"),
                             ("return", "mean episodic return")):  # fmt: skip
             envs = [e for e in study["envs"] if any(_cell(r)[:2] == (track, e) for r in runs)]
             fig, axes = _figure(4.2 * len(envs), 3.4, ncols=len(envs))

@@ -335,7 +335,11 @@ def read_run_config(run_dir: str | Path) -> TrainConfig:
         raise ConfigError(
             f"{run_dir} is not a run directory (no config.toml); pass the --out of a training run"
         )
-    return validate_config(tomllib.loads(path.read_text()), str(path))
+    data = tomllib.loads(path.read_text())
+    # A run saved before ppo.start_spread existed trained from the spawn alone; grid's default
+    # of 0.5 must not switch it to spread starts when it resumes.
+    data.setdefault("ppo", {}).setdefault("start_spread", 0.0)
+    return validate_config(data, str(path))
 
 
 def validate_config(data: dict[str, Any], source: str = "config") -> TrainConfig:
