@@ -12,7 +12,7 @@ from snnkart.envs.constants import KART_RADIUS_PX
 from snnkart.envs.geometry import segment_distance
 from snnkart.envs.spec import make_env
 from snnkart.eval.drivers import ScriptedDriver
-from snnkart.rl.config import load_config, read_run_config
+from snnkart.rl.config import PPOConfig, load_config, read_run_config
 from snnkart.rl.rollout import Rollout
 
 TRACKS = ["small_S", "big_S", *(f"benchmarks/tracks/{t}.toml" for t in ("ring", "zigzag", "hairpins", "bends"))]  # fmt: skip
@@ -113,4 +113,23 @@ def test_a_run_saved_before_start_spread_existed_resumes_without_it(tmp_path) ->
     (tmp_path / "config.toml").write_text(text.replace("start_spread = 0.5\n", ""))
     assert read_run_config(tmp_path).ppo.start_spread == 0.0
     (tmp_path / "config.toml").write_text(text)
-    assert read_run_config(tmp_path).ppo.start_spread == 0.5
+    assert read_run_config(tmp_path) == cfg
+
+
+def test_a_saved_run_config_keeps_plain_defaults_for_keys_it_lacks(tmp_path) -> None:
+    """A saved config is resolved: per-env and per-policy defaults are not merged in again."""
+    cfg = load_config(sets=["env=gazebo", "policy=snn"])
+    assert (cfg.ppo.ent_coef, cfg.ppo.num_envs, cfg.ppo.learning_rate) == (0.02, 16, 1e-3)
+    text = cfg.to_toml()
+    for key in ("ent_coef", "num_envs", "learning_rate"):
+        text = "\n".join(line for line in text.splitlines() if not line.startswith(f"{key} ="))
+    (tmp_path / "config.toml").write_text(text)
+    saved = read_run_config(tmp_path).ppo
+    plain = PPOConfig()
+    assert (saved.ent_coef, saved.num_envs, saved.learning_rate) == (
+        plain.ent_coef,
+        plain.num_envs,
+        plain.learning_rate,
+    )
+    # the same keys given by a user still get the env's and the policy's defaults
+    assert load_config(tmp_path / "config.toml").ppo == cfg.ppo

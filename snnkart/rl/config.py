@@ -17,6 +17,7 @@ from pydantic import (
     ConfigDict,
     Field,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -226,9 +227,13 @@ class TrainConfig(BaseModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _policy_defaults(cls, data: Any) -> Any:
-        """Defaults that differ by policy kind (and env), applied only where the user set nothing."""
-        if not isinstance(data, dict):
+    def _policy_defaults(cls, data: Any, info: ValidationInfo) -> Any:
+        """Defaults that differ by policy kind (and env), applied only where the user set nothing.
+
+        Not to a run's saved config: it is resolved already, and a key it lacks was added after
+        it was saved, so the run trained with that key's plain default, not with a per-env one.
+        """
+        if not isinstance(data, dict) or (info.context or {}).get("resolved"):
             return data
         policy = str(data.get("policy", "snn"))
         try:
@@ -335,16 +340,15 @@ def read_run_config(run_dir: str | Path) -> TrainConfig:
         raise ConfigError(
             f"{run_dir} is not a run directory (no config.toml); pass the --out of a training run"
         )
-    data = tomllib.loads(path.read_text())
-    # A run saved before ppo.start_spread existed trained from the spawn alone; grid's default
-    # of 0.5 must not switch it to spread starts when it resumes.
-    data.setdefault("ppo", {}).setdefault("start_spread", 0.0)
-    return validate_config(data, str(path))
+    return validate_config(tomllib.loads(path.read_text()), str(path), resolved=True)
 
 
-def validate_config(data: dict[str, Any], source: str = "config") -> TrainConfig:
+def validate_config(
+    data: dict[str, Any], source: str = "config", *, resolved: bool = False
+) -> TrainConfig:
+    """`data` as a TrainConfig; `resolved`: a run's saved config, given every key it had."""
     try:
-        return TrainConfig.model_validate(data)
+        return TrainConfig.model_validate(data, context={"resolved": resolved})
     except ValidationError as exc:
         lines = []
         for err in exc.errors():
