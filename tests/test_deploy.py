@@ -640,17 +640,17 @@ def test_a_stopped_lava_worker_leaves_no_open_files_and_is_stopped_once(
         worker.window(np.zeros((4, 8)))
 
 
-@pytest.mark.parametrize("kind", ["CubaLIF", "Delay"])
+@pytest.mark.parametrize("kind", ["CubaLI", "Delay"])
 def test_foreign_graph_with_unsupported_node_is_refused(kind: str) -> None:
     nodes: dict[str, Any] = {
         "in": nir.Input(input_type={"input": np.array([3])}),
         "fc": nir.Affine(weight=np.ones((4, 3), np.float32), bias=np.zeros(4, np.float32)),
         "out": nir.Output(output_type={"output": np.array([4])}),
     }
-    if kind == "CubaLIF":
-        nodes["odd"] = nir.CubaLIF(
+    if kind == "CubaLI":  # a non-spiking readout
+        nodes["odd"] = nir.CubaLI(
             tau_syn=np.full(4, 2e-3), tau_mem=np.full(4, 4e-3), r=np.full(4, 4.0),
-            v_leak=np.zeros(4), v_threshold=np.ones(4), v_reset=np.zeros(4),
+            v_leak=np.zeros(4),
         )  # fmt: skip
         edges = [("in", "fc"), ("fc", "odd"), ("odd", "out")]
     else:

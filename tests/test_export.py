@@ -138,7 +138,11 @@ def test_manifest_round_trips_and_describes_the_run(
     for f in dataclasses.fields(Manifest):
         value = getattr(manifest, f.name)
         if f.name == "layers":
-            assert [dataclasses.asdict(layer) for layer in value] == raw["layers"]
+            # a LIF layer is written without a current decay (alpha), as before CubaLIF
+            assert all(layer.alpha is None for layer in value)
+            as_written = [{k: v for k, v in dataclasses.asdict(la).items() if k != "alpha"}
+                          for la in value]  # fmt: skip
+            assert as_written == raw["layers"]
         elif isinstance(value, tuple):
             assert list(value) == raw[f.name], f.name
         else:

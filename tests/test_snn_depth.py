@@ -25,21 +25,31 @@ from snnkart.rl.config import ConfigError, load_config
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.trained import TorchPredictor, load_run
 
-DEPTHS = {1: [48], 3: [40, 32, 24]}
+# Each case: hidden layer sizes and extra settings. "cuba2" is a current-based LIF network
+# (snntorch Synaptic, exported as NIR CubaLIF) with a current decay that fixed point cannot
+# hold exactly (du = 818: effective alpha 0.80005).
+CASES: dict[str, tuple[list[int], list[str]]] = {
+    "lif1": ([48], []),
+    "lif3": ([40, 32, 24], []),
+    "cuba2": ([40, 32], ["snn.neuron=cuba", "snn.alpha=0.8"]),
+}
+DEPTHS = {name: hidden for name, (hidden, _) in CASES.items()}
+SEEDS = {"lif1": 1, "lif3": 3, "cuba2": 2}  # readout weights that make actions vary
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory: pytest.TempPathFactory) -> dict[int, tuple[Path, Path]]:
-    """A tiny grid SNN of each depth, its readout made to depend on the spikes (so actions
+def exported(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, Path]]:
+    """A tiny grid SNN of each case, its readout made to depend on the spikes (so actions
     vary), and its export."""
     base = tmp_path_factory.mktemp("depth")
     out = {}
-    for depth, hidden in DEPTHS.items():
-        run_dir = train_tiny(base / f"d{depth}", "grid", "snn", extra_sets=[f"snn.hidden={hidden}"])
+    for depth, (hidden, extra) in CASES.items():
+        sets = [f"snn.hidden={hidden}", *extra]
+        run_dir = train_tiny(base / f"d{depth}", "grid", "snn", extra_sets=sets)
         run = load_run(run_dir)
         assert isinstance(run.policy, SNNPolicy)
         with torch.no_grad():
-            generator = torch.Generator().manual_seed(depth)
+            generator = torch.Generator().manual_seed(SEEDS[depth])
             readout = run.policy.snn.readout.weight
             readout.copy_(torch.randn(readout.shape, generator=generator))
         nir_path, _ = export_nir(run, base / f"d{depth}.nir")
@@ -49,32 +59,41 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> dict[int, tuple[Path, 
 
 @pytest.mark.parametrize("depth", sorted(DEPTHS))
 def test_export_writes_a_chain_of_that_depth(
-    depth: int, exported: dict[int, tuple[Path, Path]]
+    depth: str, exported: dict[str, tuple[Path, Path]]
 ) -> None:
     run_dir, nir_path = exported[depth]
     graph = nir.read(nir_path)
     hidden = DEPTHS[depth]
-    lifs = [str(2 * i + 1) for i in range(depth)]
-    affines = [str(2 * i) for i in range(depth + 1)]
+    n = len(hidden)
+    lifs = [str(2 * i + 1) for i in range(n)]
+    affines = [str(2 * i) for i in range(n + 1)]
     assert set(graph.nodes) == {"input", "output", *lifs, *affines}
-    for name, size in zip(lifs, hidden, strict=True):
-        assert isinstance(graph.nodes[name], nir.LIF) and graph.nodes[name].tau.shape == (size,)
     manifest = Manifest.read(manifest_path(nir_path))
+    cuba = depth.startswith("cuba")
+    for name, size, spec in zip(lifs, hidden, manifest.layers, strict=True):
+        node = graph.nodes[name]
+        if cuba:  # snntorch's dt: tau = dt / (1 - decay)
+            assert isinstance(node, nir.CubaLIF) and node.tau_syn.shape == (size,)
+            np.testing.assert_allclose(1 - 1e-4 / node.tau_syn, 0.8, atol=1e-6)
+            assert spec.alpha == pytest.approx(0.8)
+        else:
+            assert isinstance(node, nir.LIF) and node.tau.shape == (size,)
+            assert spec.alpha is None
     assert [layer.size for layer in manifest.layers] == hidden
-    assert manifest.readout_node == str(2 * depth)
+    assert manifest.readout_node == str(2 * n)
     run = load_run(run_dir)
     assert list(run.config.snn.hidden) == hidden
-    assert len(run.policy.snn.lifs) == depth  # type: ignore[union-attr]
+    assert len(run.policy.snn.lifs) == n  # type: ignore[union-attr]
 
 
 @pytest.mark.parametrize("depth", sorted(DEPTHS))
 def test_reference_acts_as_the_torch_policy(
-    depth: int, exported: dict[int, tuple[Path, Path]]
+    depth: str, exported: dict[str, tuple[Path, Path]]
 ) -> None:
     run_dir, nir_path = exported[depth]
     run = load_run(run_dir)
     with torch.no_grad():  # the same readout as the export
-        generator = torch.Generator().manual_seed(depth)
+        generator = torch.Generator().manual_seed(SEEDS[depth])
         readout = run.policy.snn.readout.weight  # type: ignore[union-attr]
         readout.copy_(torch.randn(readout.shape, generator=generator))
     torch_policy, reference = TorchPredictor(run), NIRReference(nir_path, "float32")
@@ -100,20 +119,23 @@ def test_reference_acts_as_the_torch_policy(
 
 @pytest.mark.lava
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("depth", sorted(DEPTHS))
+@pytest.mark.parametrize(
+    ("depth", "arithmetic"), [(d, "fixed") for d in sorted(DEPTHS)] + [("cuba2", "float")]
+)
 def test_lava_matches_the_reference_bit_for_bit(
-    depth: int, exported: dict[int, tuple[Path, Path]]
+    depth: str, arithmetic: str, exported: dict[str, tuple[Path, Path]]
 ) -> None:
     _, nir_path = exported[depth]
-    reference = NIRReference(nir_path, "fixed")
+    reference = NIRReference(nir_path, "fixed" if arithmetic == "fixed" else "float64")
     env = make_policy_env(reference.manifest, None, None)
+    n = len(DEPTHS[depth])
     try:
-        with LavaSimPredictor(nir_path, "fixed") as lava:
+        with LavaSimPredictor(nir_path, arithmetic) as lava:
             obs, _ = env.reset(seed=11)
             for step in range(80):
                 ref_window, ref_out = reference.step(obs)
                 lava_window, lava_out = lava.step(obs)
-                assert lava_window.raster.shape == (8 + depth - 1, sum(DEPTHS[depth]))
+                assert lava_window.raster.shape == (8 + n - 1, sum(DEPTHS[depth]))
                 np.testing.assert_array_equal(lava_window.raster, ref_window.raster, str(step))
                 np.testing.assert_array_equal(lava_out, ref_out)
                 obs, _, terminated, truncated, _ = env.step(reference.codec.decode(ref_out))
@@ -122,6 +144,7 @@ def test_lava_matches_the_reference_bit_for_bit(
             assert lava.counts.as_dict() == reference.counts.as_dict()
     finally:
         env.close()
+    assert reference.counts.spikes.sum() > 0
 
 
 @pytest.mark.parametrize("hidden", ["[]", "[8, 8, 8, 8]", "[8, 0]"])

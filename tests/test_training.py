@@ -17,6 +17,7 @@ from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any
 
+import nir
 import numpy as np
 import pytest
 import tomli_w
@@ -25,8 +26,8 @@ from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
 from snnkart.cli import app
+from snnkart.contract.manifest import Manifest, manifest_path
 from snnkart.envs.spec import ENV_REVISION, env_spec, spec_hash
-from snnkart.errors import ExportError
 from snnkart.eval.episodes import EVAL_SCHEMA, EvalSummary, run_episodes
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.checkpoint import (
@@ -144,8 +145,15 @@ def test_tiny_training_run(tmp_path: Path, env: str, policy: str, extra: list[st
         assert saved["snn"]["neuron"] == "cuba"
         assert all(type(lif).__name__ == "Synaptic" for lif in trainer.policy.snn.lifs)
         assert trainer.policy.snn.lif1.alpha.item() != 0.5  # learned: it moved
-        with pytest.raises(ExportError, match="CubaLIF"):
-            export_nir(load_run(run_dir), tmp_path / "policy.nir")
+        # no biases between spiking layers (Lava adds a bias to the voltage, NIR to the current)
+        assert saved["snn"]["hidden_bias"] is False and trainer.policy.snn.fc2.bias is None
+        path, _ = export_nir(load_run(run_dir), tmp_path / "policy.nir")
+        graph = nir.read(path)
+        assert isinstance(graph.nodes["1"], nir.CubaLIF) and isinstance(
+            graph.nodes["2"], nir.Linear
+        )
+        spec = Manifest.read(manifest_path(path)).layers[0]
+        assert spec.alpha == pytest.approx(trainer.policy.snn.lif1.alpha.item(), abs=1e-6)
 
     for name in ("checkpoint.pt", "checkpoint.json", "checkpoints/iter_000002.pt"):
         assert (run_dir / name).is_file(), name

@@ -24,14 +24,16 @@ DEPLOY_DIR = "study-deploy-lava-sim-fixed"
 
 
 def exportable(run: Run) -> bool:
-    """An SNN the NIR export takes (current-based LIF neurons wait for issue 18)."""
-    return run.policy == "snn" and run.spec.config.snn.neuron == "lif"
+    """An SNN the reference in fixed point (Lava's arithmetic) runs: LIF, or current-based LIF
+    trained without biases between its spiking layers (the default since they export)."""
+    snn_cfg = run.spec.config.snn
+    return run.policy == "snn" and (snn_cfg.neuron == "lif" or not snn_cfg.hidden_bias)
 
 
 def eval_backend(run: Run) -> str:
     if exportable(run):
         return "nir-ref fixed"
-    return "torch" if run.policy == "ann" else "torch (cuba: no NIR export before issue 18)"
+    return "torch" if run.policy == "ann" else "torch (cuba with hidden biases: not on Lava)"
 
 
 def _eval_target(run: Run, runs_dir: Path) -> tuple[list[str], Path]:

@@ -1,6 +1,7 @@
 """The one mapping from a chain to the parameters of Lava's LIF and Dense processes.
 
-Float (Lava's floating-point models): ``du = 1`` (the current is the input of the step),
+Float (Lava's floating-point models): ``du = 1`` (the current is the input of the step; for a
+CubaLIF ``du = 1 - alpha``, the current decays),
 ``dv = 1 - beta``, ``vth = threshold``; the first layer's bias is 0, because the host adds it
 to the current it sends (:mod:`snnkart.backends.host`); later layers carry their bias. Fixed
 point: the quantised values of :mod:`snnkart.backends.quantize`. The numpy reference's float64
@@ -47,7 +48,7 @@ def lava_layers(
     if arithmetic == "float64":
         return tuple(
             LavaLayer(
-                du=1.0,
+                du=1.0 if layer.alpha is None else 1.0 - float(layer.alpha[0]),
                 dv=1.0 - float(layer.beta[0]),
                 vth=float(layer.threshold[0]),
                 bias_mant=np.zeros(layer.size) if i == 0 else layer.bias.astype(np.float64),

@@ -4,7 +4,8 @@ against. It reads only the ``.nir`` file and its manifest, never training code.
 Three arithmetics (:data:`snnkart.backends.base.Arithmetic`):
 
 - ``float32``: torch's order of operations, one logical window of T SNN steps per env step
-  starting from zero membranes: ``v = beta v + I``, spike if ``v - theta > 0``, reset to 0.
+  starting from zero membranes (and currents): ``v = beta v + I`` (LIF; a CubaLIF first
+  ``i = alpha i + I``, then ``v = beta v + i``), spike if ``v - theta > 0``, reset to 0.
   It differs from the torch policy only through matrix-multiply summation order (rare
   threshold flips).
 - ``float64``: exactly what Lava's floating-point models compute (``PyLifResetModelFloat``,
@@ -93,6 +94,10 @@ class Float32Chain(_Simulator):
         self.leak = [layer.leak.astype(f32) for layer in chain.layers]
         self.theta = [layer.threshold.astype(f32) for layer in chain.layers]
         self.v_reset = [layer.v_reset.astype(f32) for layer in chain.layers]
+        self.alpha = [None if a.alpha is None else a.alpha.astype(f32) for a in chain.layers]
+        self.syn_gain = [
+            None if a.syn_gain is None else a.syn_gain.astype(f32) for a in chain.layers
+        ]
 
     membranes: np.ndarray | None = None  # [T, N] before reset, while trace() runs
 
@@ -110,6 +115,7 @@ class Float32Chain(_Simulator):
         T, offsets = self.T, self.offsets
         raster = np.zeros((T, offsets[-1]), dtype=bool)
         v = [np.zeros(n, dtype=np.float32) for n in self.sizes]
+        syn = [np.zeros(n, dtype=np.float32) for n in self.sizes]
         for t in range(T):
             s_prev: np.ndarray | None = None
             for i in range(len(self.sizes)):
@@ -118,6 +124,12 @@ class Float32Chain(_Simulator):
                 else:
                     assert s_prev is not None
                     inp = self.weights[i] @ s_prev.astype(np.float32) + self.biases[i]
+                alpha, syn_gain = self.alpha[i], self.syn_gain[i]
+                if alpha is not None and syn_gain is not None:  # CubaLIF: a current first
+                    syn[i] = alpha * syn[i] + (
+                        inp if self.chain.layers[i].plain else syn_gain * inp
+                    )
+                    inp = syn[i]
                 if self.chain.layers[i].plain:
                     v[i] = self.beta[i] * v[i] + inp
                 else:
@@ -169,7 +181,8 @@ class _LavaPipeline(_Simulator):
 
 
 class LavaFloatChain(_LavaPipeline):
-    """What Lava's floating-point models compute: float64, ``u = u (1 - du) + a_in``,
+    """What Lava's floating-point models compute: float64, ``u = u (1 - du) + a_in`` (``du`` 1
+    for LIF, ``1 - alpha`` for CubaLIF),
     ``v = v (1 - dv) + u + bias`` with the parameters Lava's processes get
     (:mod:`snnkart.backends.lava_params`)."""
 
@@ -179,7 +192,7 @@ class LavaFloatChain(_LavaPipeline):
         super().__init__(chain, num_steps)
         params = lava_layers(chain, "float64")
         self.weights = [np.asarray(p.weight) for p in params[1:]]
-        self.du = params[0].du
+        self.du = [float(p.du) for p in params]
         self.dv = [float(p.dv) for p in params]
         self.vth = [float(p.vth) for p in params]
         self.bias = [np.asarray(p.bias_mant, dtype=np.float64) for p in params]
@@ -191,7 +204,7 @@ class LavaFloatChain(_LavaPipeline):
         if self._reset_due(i):
             self.u[i] *= 0
             self.v[i] *= 0
-        self.u[i] = self.u[i] * (1 - self.du)
+        self.u[i] = self.u[i] * (1 - self.du[i])
         self.u[i] += a_in
         self.v[i] = self.v[i] * (1 - self.dv[i]) + self.u[i] + self.bias[i]
         s = self.v[i] > self.vth[i]
@@ -306,10 +319,24 @@ def load_chain(path: str | Path) -> tuple[ChainNetwork, Manifest]:
                 f"{layer.threshold[0]}) does not match the manifest (beta {spec.beta:.6f}, "
                 f"threshold {spec.threshold})"
             )
-        layers.append(dataclasses.replace(layer, beta=np.full(layer.size, spec.beta)))
+        if (layer.alpha is None) != (spec.alpha is None) or (
+            layer.alpha is not None
+            and spec.alpha is not None
+            and (np.ptp(layer.alpha) > 1e-6 or abs(layer.alpha[0] - spec.alpha) > 1e-6)
+        ):
+            raise NIRFileError(
+                f"{path}: node {spec.node}'s current decay ({_alpha(layer.alpha)}) does not "
+                f"match the manifest's ({spec.alpha})"
+            )
+        alpha = None if spec.alpha is None else np.full(layer.size, spec.alpha)
+        layers.append(dataclasses.replace(layer, beta=np.full(layer.size, spec.beta), alpha=alpha))
     if manifest.readout_node and chain.readout_node != manifest.readout_node:
         raise NIRFileError(f"{path}: readout node {chain.readout_node!r} is not the manifest's")
     return dataclasses.replace(chain, layers=tuple(layers)), manifest
+
+
+def _alpha(alpha: np.ndarray | None) -> str:
+    return "none: a LIF" if alpha is None else f"alpha {alpha[0]:.6f}"
 
 
 class NIRReference:

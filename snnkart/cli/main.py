@@ -14,6 +14,7 @@ import typer
 from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.energy import plot_app, report
 from snnkart.cli.guard import fail, guard, interrupted_exit
+from snnkart.cli.nir import nir_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
 from snnkart.errors import SnnkartError
@@ -330,6 +331,7 @@ app.command()(report)
 app.command()(sweep)
 app.command()(study)
 app.add_typer(plot_app, name="plot")
+app.add_typer(nir_app, name="nir")
 
 
 def main() -> None:

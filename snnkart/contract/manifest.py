@@ -28,12 +28,14 @@ ACTION_MODES = ("discrete", "continuous")
 
 @dataclass(frozen=True)
 class LayerSpec:
-    """One LIF population: its NIR node name, size and the shared decay and threshold."""
+    """One LIF population: its NIR node name, size and the shared decay and threshold (and a
+    CubaLIF's shared current decay ``alpha``; None for a LIF)."""
 
     node: str
     size: int
     beta: float
     threshold: float
+    alpha: float | None = None
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,11 @@ class Manifest:
         return self.obs_dim * (self.population or 1)
 
     def to_json(self) -> str:
-        return json.dumps(asdict(self), indent=2) + "\n"
+        data = asdict(self)
+        for layer in data["layers"]:  # a LIF layer's manifest entry is what it always was
+            if layer["alpha"] is None:
+                del layer["alpha"]
+        return json.dumps(data, indent=2) + "\n"
 
     @classmethod
     def from_json(cls, text: str, source: str = "manifest") -> Manifest:

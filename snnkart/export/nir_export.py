@@ -41,18 +41,32 @@ def _leaky(size: int, beta: float, threshold: float) -> torch.nn.Module:
     )
 
 
+def _synaptic(size: int, alpha: float, beta: float, threshold: float) -> torch.nn.Module:
+    import snntorch as snn
+
+    return snn.Synaptic(
+        alpha=torch.full((size,), alpha),
+        beta=torch.full((size,), beta),
+        threshold=torch.full((size,), threshold),
+        reset_mechanism="zero",
+        reset_delay=False,
+        init_hidden=True,
+    )
+
+
+def _neuron_module(spec: LayerSpec) -> torch.nn.Module:
+    """The snntorch module whose export is this layer's NIR node (LIF or CubaLIF)."""
+    if spec.alpha is None:
+        return _leaky(spec.size, spec.beta, spec.threshold)
+    return _synaptic(spec.size, spec.alpha, spec.beta, spec.threshold)
+
+
 def check_exportable(policy: Any) -> None:
     """Refuse what Lava's LIF cannot run: subtractive reset, non-uniform decay or threshold."""
     if not isinstance(policy, SNNPolicy):
         raise ExportError(
             f"only spiking policies can be exported to NIR for Lava; this run trained a "
             f"{getattr(policy, 'kind', type(policy).__name__).upper()} policy"
-        )
-    if policy.cfg.neuron != "lif":
-        raise ExportError(
-            f"this policy's neurons are snn.neuron = {policy.cfg.neuron!r} (current-based LIF); "
-            "their NIR export (CubaLIF) and deployment come with the NIR tools (issue 18): "
-            "export a policy trained with snn.neuron = 'lif'"
         )
     for i, lif in enumerate(policy.snn.lifs, start=1):
         name = f"lif{i}"
@@ -65,10 +79,16 @@ def check_exportable(policy: Any) -> None:
             )
         beta = lif.beta.detach().reshape(-1)
         thr = lif.threshold.detach().reshape(-1)
-        if not torch.all(beta == beta[0]) or not torch.all(thr == thr[0]):
+        alpha = getattr(lif, "alpha", beta).detach().reshape(-1)  # Synaptic's current decay
+        if not all(torch.all(x == x[0]) for x in (beta, thr, alpha)):
             raise ExportError(
-                f"{name} has per-neuron decay or threshold values; Lava's LIF has one decay and "
-                "one threshold per population"
+                f"{name} has per-neuron decay or threshold values; Lava's LIF has one decay, "
+                "one current decay and one threshold per population"
+            )
+        if not 0.0 <= float(alpha[0].clamp(0, 1)) < 1.0:
+            raise ExportError(
+                f"{name} has alpha = {float(alpha[0])}; the current decay must be < 1 (alpha = 1 "
+                "is an infinite NIR tau_syn)"
             )
         b = float(beta[0].clamp(0, 1))
         if not 0.0 <= b < 1.0:
@@ -91,10 +111,11 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
     assert isinstance(policy, SNNPolicy)
     actor = policy.snn
     layers = _layer_specs(actor)
-    # The converter map: fc_i -> Affine "2(i-1)", lif_i -> LIF "2i-1", readout -> Affine "2K".
+    # The converter map: fc_i -> Affine "2(i-1)", lif_i -> LIF or CubaLIF "2i-1", readout ->
+    # Affine "2K".
     modules: list[torch.nn.Module] = []
     for fc, spec in zip(actor.fcs, layers, strict=True):
-        modules += [fc, _leaky(spec.size, spec.beta, spec.threshold)]
+        modules += [fc, _neuron_module(spec)]
     net = torch.nn.Sequential(*modules, actor.readout).eval()
     with torch.no_grad():
         graph = export_to_nir(net, torch.zeros(actor.fcs[0].in_features))
@@ -141,26 +162,28 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
 
 def _layer_specs(actor: Any) -> tuple[LayerSpec, ...]:
     """Each spiking layer's NIR node name (``2i - 1`` in the exported chain), size, decay and
-    threshold (one per population, as Lava's LIF has)."""
+    threshold, and a Synaptic layer's current decay (one per population, as Lava's LIF has)."""
     return tuple(
         LayerSpec(
             str(2 * i + 1),
             fc.out_features,
             float(lif.beta.detach().reshape(-1)[0].clamp(0, 1)),
             float(lif.threshold.detach().reshape(-1)[0]),
+            float(lif.alpha.detach().reshape(-1)[0].clamp(0, 1)) if hasattr(lif, "alpha") else None,
         )
         for i, (fc, lif) in enumerate(zip(actor.fcs, actor.lifs, strict=True))
     )
 
 
 def _check_graph(graph: Any, layers: tuple[LayerSpec, ...], readout_node: str) -> None:
-    """The exported graph must be the expected chain with reset-to-zero LIF vectors."""
+    """The exported graph must be the expected chain with reset-to-zero LIF (or CubaLIF)
+    vectors whose time constants give back the trained decays."""
     import nir
 
     expected: dict[str, Any] = {"input": nir.Input, "output": nir.Output, readout_node: nir.Affine}
     for spec in layers:
-        expected[spec.node] = nir.LIF
-        expected[str(int(spec.node) - 1)] = nir.Affine
+        expected[spec.node] = nir.LIF if spec.alpha is None else nir.CubaLIF
+        expected[str(int(spec.node) - 1)] = (nir.Affine, nir.Linear)  # Linear: no bias
     for name, kind in expected.items():
         node = graph.nodes.get(name)
         if not isinstance(node, kind):
@@ -168,12 +191,17 @@ def _check_graph(graph: Any, layers: tuple[LayerSpec, ...], readout_node: str) -
     for spec in layers:
         name, size, beta, th = spec.node, spec.size, spec.beta, spec.threshold
         node = graph.nodes[name]
-        if node.tau.shape != (size,) or not np.all(node.v_reset == 0):
+        tau = node.tau if spec.alpha is None else node.tau_mem
+        if tau.shape != (size,) or not np.all(node.v_reset == 0):
             raise ExportError(f"NIR LIF {name}: expected {size} neurons resetting to 0")
-        beta_back = 1.0 - NIR_DT / node.tau
+        beta_back = 1.0 - NIR_DT / tau
         if not np.allclose(beta_back, beta, rtol=0, atol=1e-6) or not np.all(
             node.v_threshold == th
         ):
             raise ExportError(f"NIR LIF {name}: time constants or thresholds do not round-trip")
-        if not math.isfinite(float(np.max(node.tau))):
+        if spec.alpha is not None and not np.allclose(
+            1.0 - NIR_DT / node.tau_syn, spec.alpha, rtol=0, atol=1e-6
+        ):
+            raise ExportError(f"NIR CubaLIF {name}: current time constants do not round-trip")
+        if not math.isfinite(float(np.max(tau))):
             raise ExportError(f"NIR LIF {name}: infinite time constant (beta = 1)")

@@ -64,8 +64,8 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
              "the numpy reference in fixed point. ✓/✗: better/worse than the original (one run "
              "per cell; shown for small_S at 300 finishes).", ""]  # fmt: skip
     if any(r.get("eval_backend", "").startswith("torch (cuba") for r in record["runs"]):
-        lines += ["Current-based LIF (cuba) SNNs are evaluated in torch: their NIR export comes "
-                  "with issue 18.", ""]  # fmt: skip
+        lines += ["Current-based LIF (cuba) SNNs with biases between their spiking layers are "
+                  "evaluated in torch: Lava's LIF cannot run those biases.", ""]  # fmt: skip
     if record.get("only"):
         lines += [f"A piece of the study: the cells matching `{' '.join(record['only'])}`.", ""]
     cells = record["cells"]

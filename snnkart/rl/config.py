@@ -98,6 +98,12 @@ class SNNConfig(_Section):
     )
     alpha: float = Field(0.5, ge=0.0, lt=1.0, description="cuba: synaptic current decay")
     learn_alpha: bool = False
+    hidden_bias: bool = Field(
+        True,
+        description="biases on the synapses between spiking layers (default: off for cuba, "
+        "whose NIR bias feeds the decaying current, which Lava's LIF cannot: it adds its bias "
+        "to the voltage)",
+    )
     beta: float = Field(0.9, ge=0.0, lt=1.0, description="membrane decay per SNN step")
     threshold: float = Field(1.0, gt=0.0)
     learn_beta: bool = False
@@ -245,6 +251,9 @@ class TrainConfig(BaseModel):
             ENV_POLICY_DEFAULTS.get((env, policy), {}),
         ):
             data = _merge_defaults(data, defaults)
+        snn_cfg = data.get("snn")
+        if isinstance(snn_cfg, dict) and snn_cfg.get("neuron") == "cuba":
+            data = {**data, "snn": {"hidden_bias": False, **snn_cfg}}
         return data
 
     @model_validator(mode="after")

@@ -157,7 +157,7 @@ class SpikingActor(nn.Module):
         # Layers are attributes fc1, lif1, fc2, lif2, ... (the state-dict keys of every
         # checkpoint written so far); ``fcs`` and ``lifs`` list them in order.
         for i, (a, b) in enumerate(itertools.pairwise(sizes), start=1):
-            setattr(self, f"fc{i}", nn.Linear(a, b))
+            setattr(self, f"fc{i}", nn.Linear(a, b, bias=i == 1 or cfg.hidden_bias))
         self.readout = layer_init(nn.Linear(sizes[-1], n_out), std=0.01)
         self.fcs: list[nn.Linear] = [getattr(self, f"fc{i}") for i in range(1, len(sizes))]
         with torch.no_grad():

@@ -1,0 +1,134 @@
+"""``snnkart nir info`` and ``snnkart nir run``: NIR graphs from any library."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from snnkart.cli.guard import guard
+
+nir_app = typer.Typer(
+    help="Inspect and run NIR graphs, from snnkart or any other library.", no_args_is_help=True
+)
+
+GraphArg = Annotated[Path, typer.Argument(help="a NIR graph (.nir)")]
+DtOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--dt",
+        help="time step in seconds (NIR records none; snntorch exports use 1e-4, lava-dl 1); "
+        "default: the manifest's, for graphs snnkart exported",
+    ),
+]
+DiscOpt = Annotated[
+    str,
+    typer.Option(
+        "--discretisation",
+        help="euler (decay 1 - dt/tau; snntorch, the NIR paper's Lava mapping) or exact "
+        "(exp(-dt/tau))",
+    ),
+]
+
+
+@nir_app.command("info")
+def info(
+    graph: GraphArg,
+    dt: DtOpt = None,
+    discretisation: DiscOpt = "euler",
+    as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
+) -> None:
+    """Nodes, edges, shapes, neuron parameters, parameter count, and what runs on nir-ref and
+    on lava-sim (and why not), with the per-step decays the chosen dt implies."""
+    from snnkart.app.nir_tools import run_nir_info
+
+    facts = guard(lambda: run_nir_info(graph, dt, discretisation))
+    if as_json:
+        typer.echo(json.dumps(facts.as_dict(), indent=2))
+        return
+    typer.echo(f"{graph}: {len(facts.nodes)} nodes, {len(facts.edges)} edges, "
+               f"{facts.parameter_count:,} parameters")  # fmt: skip
+    for node in facts.nodes:
+        shapes = f"in {node.input_shape} out {node.output_shape}"
+        typer.echo(f"  {node.name}: {node.kind} ({shapes})")
+        for key, value in node.parameters.items():
+            typer.echo(f"      {key} {value}")
+    typer.echo("  edges: " + ", ".join(f"{a} -> {b}" for a, b in facts.edges))
+    if facts.dt is None:
+        typer.echo(f"dt: none ({facts.dt_source}); pass --dt to see the decays it implies")
+    else:
+        typer.echo(f"dt: {facts.dt:g} s from {facts.dt_source}, {facts.discretisation}")
+        for layer in facts.layers:
+            typer.echo("  " + _layer_line(layer))
+    typer.echo(f"nir-ref: {facts.reference}")
+    if facts.reference == "supported" and facts.dt is None:
+        typer.echo("lava-sim: unknown until a time step is given (--dt): it decides the decays")
+    elif facts.reference == "supported":
+        lava = "supported" if not facts.lava else "not supported"
+        typer.echo(f"lava-sim: {lava}")
+        for name, why in facts.lava.items():
+            typer.echo(f"  {name}: {why}")
+
+
+def _layer_line(layer: dict[str, Any]) -> str:
+    parts = [f"{layer['neuron']} ({layer['size']} neurons): beta {layer['beta']}"]
+    if layer["alpha"] is not None:
+        parts.append(f"alpha {layer['alpha']}")
+    parts.append(f"input gain {layer['gain']}")
+    if layer["syn_gain"] is not None:
+        parts.append(f"current input gain {layer['syn_gain']}")
+    if layer["leak"] != 0:
+        parts.append(f"leak {layer['leak']}")
+    parts.append(f"threshold {layer['threshold']}")
+    return ", ".join(parts)
+
+
+@nir_app.command("run")
+def run(
+    graph: GraphArg,
+    input_file: Annotated[
+        Path, typer.Option("--input", help=".npy array [N, n_in]: currents, or spikes as 0/1")
+    ],
+    steps: Annotated[int | None, typer.Option(help="run the first N steps (default: all)")] = None,
+    backend: Annotated[str, typer.Option(help="nir-ref or lava-sim")] = "nir-ref",
+    precision: Annotated[
+        str | None,
+        typer.Option(
+            help="nir-ref: float32 (default), float64 or fixed; lava-sim: float or fixed (default)"
+        ),
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help=".npz: every layer's spikes and readout")
+    ] = None,
+    check: Annotated[
+        bool,
+        typer.Option(
+            help="also run the reference of the same arithmetic and the float32 reference, and "
+            "count the spikes that differ"
+        ),
+    ] = False,
+    dt: DtOpt = None,
+    discretisation: DiscOpt = "euler",
+) -> None:
+    """Run a graph open loop on given input from zero state: every layer's spikes and the
+    readout, optionally checked against the reference (exit 4 if not bit-exact)."""
+    from snnkart.app.nir_tools import run_nir_run
+
+    chosen = precision or ("fixed" if backend == "lava-sim" else "float32")
+    guard(
+        lambda: run_nir_run(
+            graph, input_file, steps, backend, chosen, out, check, dt, discretisation, _show
+        )
+    )
+
+
+def _show(summary: dict[str, Any]) -> None:
+    typer.echo(f"{summary['graph']} on {summary['backend']} ({summary['arithmetic']}), "
+               f"{summary['steps']} steps; spikes per layer: {summary['spikes']}")  # fmt: skip
+    for c in summary["checks"]:
+        verdict = "bit-exact" if c["bit_exact"] else f"flipped spikes {c['flips']}"
+        typer.echo(f"  against {c['b']}: {verdict} ({c['spikes_a']} vs {c['spikes_b']} spikes)")
+    if "out" in summary:
+        typer.echo(f"wrote {summary['out']}")
