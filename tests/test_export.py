@@ -14,6 +14,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+import jsonschema
 import nir
 import numpy as np
 import pytest
@@ -25,7 +26,13 @@ from snnkart.app.report import build_report
 from snnkart.backends.reference import NIRFileError, NIRReference
 from snnkart.cli import app
 from snnkart.contract.encoding import population
-from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, ManifestError, manifest_path
+from snnkart.contract.manifest import (
+    MANIFEST_SCHEMA,
+    SCHEMA_FILE,
+    Manifest,
+    ManifestError,
+    manifest_path,
+)
 from snnkart.envs.spec import spec_hash
 from snnkart.export.nir_export import NIR_DT, ExportError, check_exportable, export_nir
 from snnkart.rl.config import load_config
@@ -134,9 +141,19 @@ def test_manifest_round_trips_and_describes_the_run(
 
     # every field survives JSON, and a second write/read gives the same record
     raw = json.loads(mpath.read_text())
-    assert set(raw) == {f.name for f in dataclasses.fields(Manifest)}
+    # every field, but the default discretisation (euler) is not written, as before it existed
+    assert set(raw) == {f.name for f in dataclasses.fields(Manifest)} - {"discretisation"}
+
+    schema = json.loads(SCHEMA_FILE.read_text())
+    jsonschema.validate(raw, schema)  # the versioned JSON Schema other tools can read
+    for broken in ({**raw, "num_steps": 0}, {k: v for k, v in raw.items() if k != "layers"}):
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate(broken, schema)
+    assert manifest.discretisation == "euler"
     for f in dataclasses.fields(Manifest):
         value = getattr(manifest, f.name)
+        if f.name == "discretisation":
+            continue
         if f.name == "layers":
             # a LIF layer is written without a current decay (alpha), as before CubaLIF
             assert all(layer.alpha is None for layer in value)

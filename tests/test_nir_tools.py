@@ -204,3 +204,56 @@ def test_run_needs_a_dt_and_a_runnable_graph(files, tmp_path: Path) -> None:
         assert result.returncode == 2 and message in result.stderr, result.stderr
         info = snnkart("nir", "info", str(path), "--dt", "1e-3")
         assert info.returncode == 0 and message in info.stdout
+
+
+def _grid_policy(tmp_path: Path) -> Path:
+    """A foreign 2-layer LIF graph of grid's sizes (21 observation values, 5 actions)."""
+    graph = _chain([_lif(16, 1e-2), _lif(12, 5e-3)], 21, seed=4)
+    graph.nodes["ro"] = nir.Affine(
+        weight=np.random.default_rng(2).normal(0, 1, (5, 12)).astype(np.float32),
+        bias=np.zeros(5, np.float32),
+    )
+    graph.nodes["out"] = nir.Output(output_type={"output": np.array([5])})
+    path = tmp_path / "foreign.nir"
+    nir.write(path, graph)
+    return path
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(300)
+def test_a_foreign_graph_drives_the_kart_with_a_written_manifest(tmp_path: Path) -> None:
+    import jsonschema
+
+    from snnkart.contract.manifest import SCHEMA_FILE, Manifest, manifest_path
+
+    path = _grid_policy(tmp_path)
+    result = snnkart("nir", "manifest", str(path), "--env", "grid", "--dt", "1e-3",
+                     "--readout", "ro", "--num-steps", "6")  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    raw = json.loads(manifest_path(path).read_text())
+    jsonschema.validate(raw, json.loads(SCHEMA_FILE.read_text()))
+    manifest = Manifest.read(manifest_path(path))
+    assert manifest.num_steps == 6 and [la.node for la in manifest.layers] == ["n0", "n1"]
+    assert manifest.layers[0].beta == pytest.approx(0.9) and manifest.obs_dim == 21
+    out = tmp_path / "deploy"
+    result = snnkart("deploy", str(path), "--backend", "lava-sim", "--episodes", "1",
+                     "--out", str(out), timeout=280)  # fmt: skip
+    assert result.returncode == 0, result.stdout + result.stderr  # 4 if not bit-exact
+    record = json.loads((out / "deploy.json").read_text())
+    assert record["counts"]["env_steps"] > 0 and sum(record["counts"]["spikes"]) > 0
+
+
+def test_a_manifest_is_refused_when_the_graph_does_not_fit_the_env(tmp_path: Path) -> None:
+    path = _grid_policy(tmp_path)
+    for args, message in [
+        (["--env", "gazebo"], "takes 21 inputs; env 'gazebo' observes 23"),
+        (["--env", "grid", "--action-mode", "continuous"], "gives 5 values; env 'grid' "),
+        (["--env", "grid", "--readout", "n1"], "--readout 'n1' is not the graph's readout"),
+        (["--env", "grid", "--encoding", "population", "--population", "4"], "x 4 receptive"),
+    ]:
+        result = snnkart("nir", "manifest", str(path), "--dt", "1e-3", *args)
+        assert result.returncode == 2 and message in result.stderr, (args, result.stderr)
+    ok = snnkart("nir", "manifest", str(path), "--dt", "1e-3", "--env", "grid")
+    assert ok.returncode == 0, ok.stderr
+    again = snnkart("nir", "manifest", str(path), "--dt", "1e-3", "--env", "grid")
+    assert again.returncode == 2 and "pass --force" in again.stderr

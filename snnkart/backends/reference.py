@@ -288,7 +288,7 @@ def load_chain(path: str | Path) -> tuple[ChainNetwork, Manifest]:
     manifest's decays (the float32 values torch used) replace the ones derived from tau."""
     graph, manifest = load_nir(path)
     try:
-        chain = chain_from_graph(graph, manifest.nir_dt)
+        chain = chain_from_graph(graph, manifest.nir_dt, manifest.discretisation)
     except UnsupportedGraphError as exc:
         raise NIRFileError(f"{path}: {exc}") from exc
     if chain.n_in != manifest.input_size:

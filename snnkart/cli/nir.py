@@ -132,3 +132,38 @@ def _show(summary: dict[str, Any]) -> None:
         typer.echo(f"  against {c['b']}: {verdict} ({c['spikes_a']} vs {c['spikes_b']} spikes)")
     if "out" in summary:
         typer.echo(f"wrote {summary['out']}")
+
+
+@nir_app.command("manifest")
+def manifest(
+    graph: GraphArg,
+    env: Annotated[str, typer.Option("--env", "-e", help="grid, gazebo or steer")],
+    dt: Annotated[
+        float, typer.Option("--dt", help="time step in seconds the graph was trained with")
+    ],
+    track: Annotated[str, typer.Option("--track", "-t", help="track to drive")] = "small_S",
+    encoding: Annotated[
+        str, typer.Option(help="current (observation as input current), rate or population")
+    ] = "current",
+    readout: Annotated[
+        str | None, typer.Option(help="the Affine/Linear node read out (checked against the graph)")
+    ] = None,
+    num_steps: Annotated[int, typer.Option(help="T: SNN steps per env step")] = 8,
+    action_mode: Annotated[str, typer.Option(help="discrete or continuous")] = "discrete",
+    population: Annotated[
+        int | None, typer.Option(help="population encoding: receptive fields per observation")
+    ] = None,
+    discretisation: DiscOpt = "euler",
+    force: Annotated[bool, typer.Option(help="replace an existing manifest")] = False,
+) -> None:
+    """Write the manifest that lets `snnkart deploy` drive the kart with a graph from another
+    library, after checking it against the env's observation and action sizes."""
+    from snnkart.app.nir_manifest import write_manifest
+
+    out = guard(
+        lambda: write_manifest(
+            graph, env, track, encoding, readout, dt, discretisation, num_steps, action_mode,
+            population, force,
+        )
+    )  # fmt: skip
+    typer.echo(f"wrote {out}; run it with: snnkart deploy {graph} --backend nir-ref")

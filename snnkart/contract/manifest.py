@@ -19,6 +19,8 @@ from snnkart.errors import ManifestError
 from snnkart.io import atomic_path
 
 MANIFEST_SCHEMA = "snnkart/manifest/v2"
+SCHEMA_FILE = Path(__file__).with_name("manifest.schema.json")
+"""The JSON Schema of a v2 manifest (for other tools; this module validates in ``__post_init__``)."""
 """v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests still
 load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
 READABLE_SCHEMAS = ("snnkart/manifest/v1", MANIFEST_SCHEMA)
@@ -59,6 +61,7 @@ class Manifest:
     encoding_rng: str | None = None  # rate encoding: how every backend draws the input spikes
     track: dict[str, str] | None = None  # the trained track (v2; None in v1 manifests)
     population: int | None = None  # population encoding: receptive fields per observation
+    discretisation: str = "euler"  # of the time constants at nir_dt: euler or exact (exp)
 
     def __post_init__(self) -> None:
         """A manifest is valid from construction on, however it was made."""
@@ -82,6 +85,10 @@ class Manifest:
             raise ManifestError(
                 f"unknown action_mode {self.action_mode!r}; choose one of {ACTION_MODES}"
             )
+        if self.discretisation not in ("euler", "exact"):
+            raise ManifestError(
+                f"unknown discretisation {self.discretisation!r}; choose 'euler' or 'exact'"
+            )
         if self.num_steps < 1 or not self.layers:
             raise ManifestError("a manifest needs num_steps >= 1 and at least one layer")
         dims = {len(getattr(self, k)) for k in ("obs_mean", "obs_std", "obs_low", "obs_high")}
@@ -104,6 +111,8 @@ class Manifest:
         for layer in data["layers"]:  # a LIF layer's manifest entry is what it always was
             if layer["alpha"] is None:
                 del layer["alpha"]
+        if data["discretisation"] == "euler":  # the default, as every manifest before it
+            del data["discretisation"]
         return json.dumps(data, indent=2) + "\n"
 
     @classmethod
