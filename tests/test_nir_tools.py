@@ -39,6 +39,19 @@ def _cuba(n: int, tau_syn: float, tau_mem: float) -> nir.CubaLIF:
     )  # fmt: skip
 
 
+LI_TAU = 5e-3  # an LI readout: decay 0.8, gain dt r / tau = 2, leak dt v_leak / tau = 0.02
+
+
+def _with_li(graph: nir.NIRGraph) -> nir.NIRGraph:
+    """The graph with an LI node between its readout Affine and the Output."""
+    n = int(np.asarray(graph.nodes["ro"].weight).shape[0])
+    graph.nodes["li"] = nir.LI(
+        tau=np.full(n, LI_TAU), r=np.full(n, 2 * LI_TAU / DT), v_leak=np.full(n, 0.1)
+    )
+    graph.edges[:] = [e for e in graph.edges if e != ("ro", "out")] + [("ro", "li"), ("li", "out")]
+    return graph
+
+
 def _chain(neurons: list[nir.NIRNode], n_in: int, seed: int = 0) -> nir.NIRGraph:
     """Input -> (Affine -> neuron) per layer -> Affine readout (2 outputs) -> Output."""
     rng = np.random.default_rng(seed)
@@ -66,6 +79,7 @@ def files(tmp_path: Path) -> dict[str, Path]:
         "lif1": _chain([_lif(4, 4e-3)], 3),
         "cuba2": _chain([_cuba(6, 2e-3, 1e-2), _cuba(4, 4e-3, 5e-3)], 3),
         "lif3": _chain([_lif(5, 1e-2), _lif(4, 5e-3), _lif(3, 1e-2)], 3),
+        "li": _with_li(_chain([_lif(5, 1e-2), _cuba(4, 2e-3, 5e-3)], 3)),
     }.items():
         out[name] = tmp_path / f"{name}.nir"
         nir.write(out[name], graph)
@@ -137,7 +151,7 @@ def _hand(graph: nir.NIRGraph, x: np.ndarray) -> list[np.ndarray]:
     return rasters
 
 
-@pytest.mark.parametrize("name", ["lif1", "cuba2", "lif3"])
+@pytest.mark.parametrize("name", ["lif1", "cuba2", "lif3", "li"])
 def test_run_writes_every_layers_spikes_as_computed_by_hand(files, tmp_path, name) -> None:
     out = tmp_path / "r.npz"
     result = snnkart("nir", "run", str(files[name]), "--input", str(files["x"]), "--dt", "1e-3",
@@ -148,15 +162,24 @@ def test_run_writes_every_layers_spikes_as_computed_by_hand(files, tmp_path, nam
     for i, spikes in enumerate(expected):
         np.testing.assert_array_equal(data[f"spikes_n{i}"], spikes)
         assert 0 < spikes.sum() < spikes.size
-    np.testing.assert_allclose(data["readout"], expected[-1].sum(axis=1, keepdims=True) * [1, 1])
+    per_step = expected[-1].sum(axis=1, keepdims=True) * [1.0, 1.0]  # readout weights are 1
+    if name == "li":  # v <- 0.8 v + 2 (W s + b) + 0.02, read at every step
+        v, trace = np.zeros(2), []
+        for x in per_step:
+            v = 0.8 * v + 2 * x + 0.02
+            trace.append(v)
+        per_step = np.array(trace)
+    np.testing.assert_allclose(data["readout"], per_step, rtol=1e-5)
     assert json.loads(str(data["summary"]))["steps"] == 120
 
 
 @pytest.mark.lava
 @pytest.mark.timeout(180)
-@pytest.mark.parametrize("precision", ["fixed", "float"])
-def test_run_on_lava_is_bit_exact_with_the_reference(files, precision: str) -> None:
-    result = snnkart("nir", "run", str(files["cuba2"]), "--input", str(files["x"]), "--dt", "1e-3",
+@pytest.mark.parametrize(
+    ("name", "precision"), [("cuba2", "fixed"), ("cuba2", "float"), ("li", "fixed")]
+)
+def test_run_on_lava_is_bit_exact_with_the_reference(files, name: str, precision: str) -> None:
+    result = snnkart("nir", "run", str(files[name]), "--input", str(files["x"]), "--dt", "1e-3",
                      "--backend", "lava-sim", "--precision", precision, "--check",
                      timeout=170)  # fmt: skip
     assert result.returncode == 0, result.stdout + result.stderr
@@ -206,14 +229,17 @@ def test_run_needs_a_dt_and_a_runnable_graph(files, tmp_path: Path) -> None:
         assert info.returncode == 0 and message in info.stdout
 
 
-def _grid_policy(tmp_path: Path) -> Path:
-    """A foreign 2-layer LIF graph of grid's sizes (21 observation values, 5 actions)."""
+def _grid_policy(tmp_path: Path, li: bool = False) -> Path:
+    """A foreign 2-layer LIF graph of grid's sizes (21 observation values, 5 actions), read out
+    through an LI node if ``li``."""
     graph = _chain([_lif(16, 1e-2), _lif(12, 5e-3)], 21, seed=4)
     graph.nodes["ro"] = nir.Affine(
         weight=np.random.default_rng(2).normal(0, 1, (5, 12)).astype(np.float32),
         bias=np.zeros(5, np.float32),
     )
     graph.nodes["out"] = nir.Output(output_type={"output": np.array([5])})
+    if li:
+        graph = _with_li(graph)
     path = tmp_path / "foreign.nir"
     nir.write(path, graph)
     return path
@@ -221,12 +247,13 @@ def _grid_policy(tmp_path: Path) -> Path:
 
 @pytest.mark.lava
 @pytest.mark.timeout(300)
-def test_a_foreign_graph_drives_the_kart_with_a_written_manifest(tmp_path: Path) -> None:
+@pytest.mark.parametrize("li", [False, True])
+def test_a_foreign_graph_drives_the_kart_with_a_written_manifest(tmp_path: Path, li: bool) -> None:
     import jsonschema
 
     from snnkart.contract.manifest import SCHEMA_FILE, Manifest, manifest_path
 
-    path = _grid_policy(tmp_path)
+    path = _grid_policy(tmp_path, li)
     result = snnkart("nir", "manifest", str(path), "--env", "grid", "--dt", "1e-3",
                      "--readout", "ro", "--num-steps", "6")  # fmt: skip
     assert result.returncode == 0, result.stderr
@@ -257,3 +284,23 @@ def test_a_manifest_is_refused_when_the_graph_does_not_fit_the_env(tmp_path: Pat
     assert ok.returncode == 0, ok.stderr
     again = snnkart("nir", "manifest", str(path), "--dt", "1e-3", "--env", "grid")
     assert again.returncode == 2 and "pass --force" in again.stderr
+
+
+def test_an_li_readout_decides_the_action_from_its_last_membrane(tmp_path: Path) -> None:
+    from snnkart.backends.reference import NIRReference
+
+    path = _grid_policy(tmp_path, li=True)
+    result = snnkart("nir", "manifest", str(path), "--env", "grid", "--dt", "1e-3")
+    assert result.returncode == 0, result.stderr
+    reference = NIRReference(path, "float32")
+    assert reference.chain.readout_li is not None and reference.chain.readout_node == "ro"
+    ro = nir.read(path).nodes["ro"]
+    obs = np.random.default_rng(0).uniform(0, 1, 21).astype(np.float32)
+    window, out = reference.step(obs)
+    last = window.logical[:, -12:].astype(np.float64)
+    v = np.zeros(5)
+    for s in last:  # decay 0.8, gain 2, leak 0.02
+        v = 0.8 * v + 2 * (ro.weight @ s + ro.bias) + 0.02
+    np.testing.assert_allclose(out, v, rtol=1e-5)
+    rates = ro.weight @ last.mean(axis=0) + ro.bias
+    assert last.sum() > 0 and not np.allclose(out, rates)  # not the rate readout

@@ -101,5 +101,16 @@ class HostCodec:
         """The readout vector (logits or action means) from the last layer's spike counts."""
         return encoding.readout(last_counts, self.T, self.readout_w, self.readout_b)
 
+    def readout_spikes(self, last_spikes: np.ndarray) -> np.ndarray:
+        """The readout vector from the last layer's spikes of the window ``[T, n]``: the rate
+        readout, or an LI readout's membrane at the last step."""
+        li = self.chain.readout_li
+        if li is None or self.readout_w is None or self.readout_b is None:
+            return self.readout(np.asarray(last_spikes).sum(axis=0))
+        trace = encoding.leaky_readout(
+            last_spikes, self.readout_w, self.readout_b, li.decay, li.gain, li.leak
+        )
+        return trace[-1]
+
     def decode(self, out: np.ndarray) -> Any:
         return encoding.decode(out, self.manifest.action_mode)

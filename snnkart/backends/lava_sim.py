@@ -312,7 +312,8 @@ class LavaSimPredictor:
         raster = self.worker.window(self.codec.encode(obs))
         window = split_window(raster, self.chain.sizes, self.T)
         self.counts.add(window, self.chain.fan_out)
-        return window, self.codec.readout(window.last_counts)
+        last = window.logical[:, -self.chain.sizes[-1] :]
+        return window, self.codec.readout_spikes(last)
 
     def predict(self, obs: np.ndarray) -> Any:
         return self.codec.decode(self.step(obs)[1])

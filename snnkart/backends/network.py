@@ -2,8 +2,8 @@
 
 Supported subset (anything else is refused with an error naming the node type):
 
-    Input -> [Scale] -> (Affine | Linear) -> (LIF | IF | CubaLIF) -> ... -> (Affine | Linear) -> Output
-                                                                      \\-> Output   (no readout)
+    Input -> [Scale] -> (Affine | Linear) -> (LIF | IF | CubaLIF) -> ... -> (Affine | Linear)
+             -> [LI] -> Output              (or the last spiking layer -> Output: no readout)
 
 NIR nodes are continuous-time; the chain is discretised with the recorded ``dt`` by forward
 Euler, the convention of snntorch's exporter (snntorch writes tau = dt / (1 - beta), r = tau / dt):
@@ -18,6 +18,12 @@ Euler, the convention of snntorch's exporter (snntorch writes tau = dt / (1 - be
 decay exactly) uses ``beta = exp(-dt/tau)`` and ``gain = (1 - beta) r``, ``leak = (1 - beta)
 v_leak`` (CubaLIF: ``alpha = exp(-dt/tau_syn)``, ``syn_gain = (1 - alpha) w_in``); at
 ``beta = 0.9`` the two differ by 0.5 % (0.9 against 0.905).
+
+The readout is host-side: the mean spike rates of the T steps through the last Affine, or, with
+an LI node (a non-spiking leaky integrator, the usual readout of spiking actors in other
+libraries), ``v <- decay v + gain (W s[t] + b) + leak`` over the T steps from 0, read at the
+last step. It is linear in the last layer's spikes, so every backend that matches those spikes
+matches the readout.
 
 For snntorch exports (``r = tau/dt``, ``v_leak = 0``; CubaLIF ``w_in = tau_syn/dt``) gain and
 syn_gain are exactly 1 and leak exactly 0, and the update is ``v = beta v + I`` (Leaky), or
@@ -71,6 +77,16 @@ class SpikingLayer:
 
 
 @dataclass(frozen=True)
+class LeakyReadout:
+    """An LI node after the readout synapse: ``v <- decay v + gain I + leak`` (per output)."""
+
+    node: str
+    decay: np.ndarray
+    gain: np.ndarray
+    leak: np.ndarray
+
+
+@dataclass(frozen=True)
 class ChainNetwork:
     """Input scaling, spiking layers in order, and an optional linear readout of spike rates."""
 
@@ -80,6 +96,7 @@ class ChainNetwork:
     readout_weight: np.ndarray | None  # (n_out, n_last) float32
     readout_bias: np.ndarray | None
     readout_node: str | None
+    readout_li: LeakyReadout | None = None
 
     @property
     def sizes(self) -> tuple[int, ...]:
@@ -208,6 +225,15 @@ def chain_from_graph(graph: Any, dt: float, discretisation: str = "euler") -> Ch
     if body and isinstance(nodes[body[0]], nir.Scale):
         scale = _array(nodes[body[0]], body[0], "scale").reshape(-1)
         body = body[1:]
+    li = None
+    if body and isinstance(nodes[body[-1]], nir.LI):
+        li_name, body = body[-1], body[:-1]
+        if not body or not isinstance(nodes[body[-1]], (nir.Affine, nir.Linear)):
+            raise UnsupportedGraphError(
+                f"LI node {li_name!r} must follow the readout synapse (Affine or Linear)"
+            )
+        n_out = int(np.asarray(nodes[body[-1]].weight).shape[0])
+        li = _leaky_readout(li_name, nodes[li_name], n_out, dt, discretisation)
     layers, readout = _layers(nodes, body, n_in, dt, discretisation)
     if scale is not None and scale.shape not in ((1,), (n_in,)):
         raise UnsupportedGraphError(f"Scale after the input has shape {scale.shape}")
@@ -218,7 +244,30 @@ def chain_from_graph(graph: Any, dt: float, discretisation: str = "euler") -> Ch
         readout_weight=None if readout is None else readout[0],
         readout_bias=None if readout is None else readout[1],
         readout_node=None if readout is None else readout[2],
+        readout_li=li,
     )
+
+
+def _leaky_readout(name: str, node: Any, n: int, dt: float, discretisation: str) -> LeakyReadout:
+    tau = _positive(node, name, "tau")
+    decay = _decay(dt, tau, discretisation)
+    params = {
+        "decay": decay,
+        "gain": _input_gain(dt, tau, decay, _array(node, name, "r").reshape(-1), discretisation),
+        "leak": _input_gain(
+            dt, tau, decay, _array(node, name, "v_leak").reshape(-1), discretisation
+        ),
+    }
+    for key, value in params.items():
+        if value.shape == (1,):
+            params[key] = np.full(n, value[0])
+        elif value.shape != (n,):
+            raise UnsupportedGraphError(
+                f"node {name!r}: {key} has shape {value.shape}, expected ({n},) to match the "
+                "readout synapse before it"
+            )
+    params["gain"] = np.where(np.abs(params["gain"] - 1.0) < 1e-6, 1.0, params["gain"])
+    return LeakyReadout(name, **params)
 
 
 def _chain_order(graph: Any) -> list[str]:
@@ -231,13 +280,15 @@ def _chain_order(graph: Any) -> list[str]:
     for src, dst in graph.edges:
         succ.setdefault(src, []).append(dst)
     supported = (
-        nir.Input, nir.Output, nir.Affine, nir.Linear, nir.LIF, nir.IF, nir.CubaLIF, nir.Scale
+        nir.Input, nir.Output, nir.Affine, nir.Linear, nir.LIF, nir.IF, nir.CubaLIF, nir.LI,
+        nir.Scale,
     )  # fmt: skip
     for name, node in nodes.items():
         if not isinstance(node, supported):
             raise UnsupportedGraphError(
                 f"node {name!r} is a {type(node).__name__}; supported node types are "
-                "Input, Output, Affine, Linear, LIF, IF, CubaLIF and Scale (after the input)"
+                "Input, Output, Affine, Linear, LIF, IF, CubaLIF, LI (as the readout) and Scale "
+                "(after the input)"
             )
     inputs = [k for k, n in nodes.items() if isinstance(n, nir.Input)]
     if len(inputs) != 1:

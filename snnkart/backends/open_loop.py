@@ -5,7 +5,8 @@ from zero state and runs N steps without a reset, as one window of the backends'
 (:mod:`snnkart.backends.reference`): the host computes the first layer's current ``W1 x[t] + b1``
 in the backend's arithmetic, the spiking layers run on the numpy reference or as Lava's own
 processes, and every Dense delays by one step, which the logical raster undoes. The readout of
-each step is the last Affine/Linear applied to the last layer's spikes of that step.
+each step is the last Affine/Linear applied to the last layer's spikes of that step, or, with
+an LI node after it, the LI's membrane at that step.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from snnkart.backends.host import first_current
 from snnkart.backends.network import ChainNetwork
 from snnkart.backends.quantize import FixedPointNetwork, quantize
 from snnkart.backends.reference import ChainSimulator
+from snnkart.contract.encoding import leaky_readout
 from snnkart.errors import DeployError
 
 
@@ -96,9 +98,16 @@ def run_open_loop(
     window = split_window(raster, chain.sizes, n)
     last = window.logical[:, -chain.sizes[-1] :].astype(np.float64)
     readout = None
+    li = chain.readout_li
     if chain.readout_weight is not None and chain.readout_bias is not None:
-        w = chain.readout_weight.astype(np.float64)
-        readout = last @ w.T + chain.readout_bias.astype(np.float64)
+        if li is not None:  # an LI node: its membrane at every step
+            trace = leaky_readout(
+                last, chain.readout_weight, chain.readout_bias, li.decay, li.gain, li.leak
+            )
+            readout = trace.astype(np.float64)
+        else:
+            w = chain.readout_weight.astype(np.float64)
+            readout = last @ w.T + chain.readout_bias.astype(np.float64)
     names = tuple(layer.neuron for layer in chain.layers)
     return OpenLoopResult(backend, arithmetic, window.logical, raster, chain.sizes, names, readout)
 

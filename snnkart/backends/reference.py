@@ -365,7 +365,8 @@ class NIRReference:
         raster = self.sim.window(self.codec.encode(obs))
         window = split_window(raster, self.chain.sizes, self.T)
         self.counts.add(window, self.chain.fan_out)
-        return window, self.codec.readout(window.last_counts)
+        last = window.logical[:, -self.chain.sizes[-1] :]
+        return window, self.codec.readout_spikes(last)
 
     def normalise(self, obs: np.ndarray) -> np.ndarray:
         return self.codec.normalise(obs)

@@ -86,6 +86,27 @@ def readout(
     return weight @ rates + bias
 
 
+def leaky_readout(
+    last_spikes: np.ndarray,
+    weight: np.ndarray,
+    bias: np.ndarray,
+    decay: np.ndarray,
+    gain: np.ndarray,
+    leak: np.ndarray,
+) -> np.ndarray:
+    """An LI readout's membrane at every step, ``[T, n_out]`` float32, from the last layer's
+    spikes ``[T, n]``: ``v <- decay v + gain (W s[t] + b) + leak`` from ``v = 0``."""
+    f32 = np.float32
+    w, b = weight.astype(f32), bias.astype(f32)
+    d, g, k = decay.astype(f32), gain.astype(f32), leak.astype(f32)
+    v = np.zeros(w.shape[0], dtype=f32)
+    out = np.zeros((last_spikes.shape[0], w.shape[0]), dtype=f32)
+    for t, s in enumerate(np.asarray(last_spikes, dtype=f32)):
+        v = d * v + g * (w @ s + b) + k
+        out[t] = v
+    return out
+
+
 def decode(out: np.ndarray, action_mode: str) -> Any:
     """The env action: argmax (discrete) or the readout clipped to [-1, 1] (continuous)."""
     if action_mode == "discrete":

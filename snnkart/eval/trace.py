@@ -45,8 +45,8 @@ def trace_step(nir_path: str | Path, env_step: int, seed: int = 0,
                     f"below {k + 1}"
                 )
         raster, membranes = sim.trace(policy.codec.encode(obs))
-        counts = raster.reshape(raster.shape[0], -1)[:, -policy.chain.sizes[-1] :].sum(0)
-        action = policy.codec.decode(policy.codec.readout(counts))
+        last = raster.reshape(raster.shape[0], -1)[:, -policy.chain.sizes[-1] :]
+        action = policy.codec.decode(policy.codec.readout_spikes(last))
     finally:
         env.close()
     return StepTrace(
