@@ -31,6 +31,11 @@ def _lif(n: int, tau: float, **kw: Any) -> nir.LIF:
     return nir.LIF(tau=np.full(n, tau), **{**params, **kw})
 
 
+def _if(n: int) -> nir.IF:
+    """An integrate-and-fire population with unit input gain (r = 1/dt), reset to 0."""
+    return nir.IF(r=np.full(n, 1 / DT), v_threshold=np.full(n, 2.0), v_reset=np.zeros(n))
+
+
 def _cuba(n: int, tau_syn: float, tau_mem: float) -> nir.CubaLIF:
     return nir.CubaLIF(
         tau_syn=np.full(n, tau_syn), tau_mem=np.full(n, tau_mem), r=np.full(n, tau_mem / DT),
@@ -80,6 +85,7 @@ def files(tmp_path: Path) -> dict[str, Path]:
         "cuba2": _chain([_cuba(6, 2e-3, 1e-2), _cuba(4, 4e-3, 5e-3)], 3),
         "lif3": _chain([_lif(5, 1e-2), _lif(4, 5e-3), _lif(3, 1e-2)], 3),
         "li": _with_li(_chain([_lif(5, 1e-2), _cuba(4, 2e-3, 5e-3)], 3)),
+        "if2": _chain([_if(5), _if(4)], 3),
     }.items():
         out[name] = tmp_path / f"{name}.nir"
         nir.write(out[name], graph)
@@ -137,21 +143,25 @@ def _hand(graph: nir.NIRGraph, x: np.ndarray) -> list[np.ndarray]:
         fc, neuron = graph.nodes[f"fc{i}"], graph.nodes[f"n{i}"]
         cur = inp @ fc.weight.T.astype(np.float64) + fc.bias
         cuba = isinstance(neuron, nir.CubaLIF)
-        beta = 1 - DT / (neuron.tau_mem if cuba else neuron.tau)
+        if isinstance(neuron, nir.IF):
+            beta = 1.0
+        else:
+            beta = 1 - DT / (neuron.tau_mem if cuba else neuron.tau)
         alpha = 1 - DT / neuron.tau_syn if cuba else 0.0
+        theta = np.asarray(neuron.v_threshold, dtype=np.float64)
         syn, v = np.zeros(cur.shape[1]), np.zeros(cur.shape[1])
         out = np.zeros(cur.shape, dtype=bool)
         for t in range(cur.shape[0]):
             syn = alpha * syn + cur[t]
             v = beta * v + syn
-            out[t] = v > 1.0
+            out[t] = v > theta
             v[out[t]] = 0.0
         rasters.append(out)
         inp, i = out.astype(np.float64), i + 1
     return rasters
 
 
-@pytest.mark.parametrize("name", ["lif1", "cuba2", "lif3", "li"])
+@pytest.mark.parametrize("name", ["lif1", "cuba2", "lif3", "li", "if2"])
 def test_run_writes_every_layers_spikes_as_computed_by_hand(files, tmp_path, name) -> None:
     out = tmp_path / "r.npz"
     result = snnkart("nir", "run", str(files[name]), "--input", str(files["x"]), "--dt", "1e-3",
@@ -176,7 +186,8 @@ def test_run_writes_every_layers_spikes_as_computed_by_hand(files, tmp_path, nam
 @pytest.mark.lava
 @pytest.mark.timeout(180)
 @pytest.mark.parametrize(
-    ("name", "precision"), [("cuba2", "fixed"), ("cuba2", "float"), ("li", "fixed")]
+    ("name", "precision"),
+    [("cuba2", "fixed"), ("cuba2", "float"), ("li", "fixed"), ("if2", "fixed")],
 )
 def test_run_on_lava_is_bit_exact_with_the_reference(files, name: str, precision: str) -> None:
     result = snnkart("nir", "run", str(files[name]), "--input", str(files["x"]), "--dt", "1e-3",

@@ -159,9 +159,9 @@ def _check_layer(layer: SpikingLayer) -> None:
             raise UnsupportedGraphError(
                 f"CubaLIF node {layer.neuron!r}: alpha {alpha} is outside [0, 1)"
             )
-    if not 0.0 <= layer.beta[0] < 1.0:
+    if not 0.0 <= layer.beta[0] <= 1.0:  # 1: an IF neuron (Lava's LIF with dv = 0)
         raise UnsupportedGraphError(
-            f"LIF node {layer.neuron!r}: beta {layer.beta[0]} is outside [0, 1)"
+            f"LIF node {layer.neuron!r}: beta {layer.beta[0]} is outside [0, 1]"
         )
     if theta <= 0:
         raise UnsupportedGraphError(f"LIF node {layer.neuron!r}: threshold must be > 0")
