@@ -90,7 +90,7 @@ def files(tmp_path: Path) -> dict[str, Path]:
         out[name] = tmp_path / f"{name}.nir"
         nir.write(out[name], graph)
     out["x"] = tmp_path / "x.npy"
-    np.save(out["x"], rng.uniform(0.0, 1.2, (120, 3)))
+    np.save(out["x"], rng.uniform(0.0, 1.2, (300, 3)))  # a few hundred steps
     return out
 
 
@@ -180,7 +180,7 @@ def test_run_writes_every_layers_spikes_as_computed_by_hand(files, tmp_path, nam
             trace.append(v)
         per_step = np.array(trace)
     np.testing.assert_allclose(data["readout"], per_step, rtol=1e-5)
-    assert json.loads(str(data["summary"]))["steps"] == 120
+    assert json.loads(str(data["summary"]))["steps"] == 300
 
 
 @pytest.mark.lava
