@@ -64,6 +64,57 @@ def _versions() -> dict[str, str]:
     return out
 
 
+def _env_facts(
+    env: str, track: str, action_mode: str
+) -> tuple[dict[str, Any], np.ndarray, np.ndarray, int, dict[str, str]]:
+    """The env's spec, observation bounds, action count (2 for continuous) and embedded track."""
+    from snnkart.envs import make, resolve_env_name
+    from snnkart.envs.spec import env_spec
+    from snnkart.envs.tracks import TrackError, embed_track, load_track
+
+    try:
+        kart = make(resolve_env_name(env), track=load_track(track), action_mode=action_mode)
+    except (TrackError, ValueError) as exc:
+        raise DeployError(f"cannot make env {env!r} on {track!r}: {exc}") from exc
+    try:
+        unwrapped: Any = kart.unwrapped
+        spec = env_spec(unwrapped)
+        space: Any = kart.observation_space
+        low, high = space.low, space.high
+        n_actions = int(getattr(kart.action_space, "n", 2))
+        track_record = embed_track(unwrapped.track, track)
+    finally:
+        kart.close()
+    return spec, low, high, n_actions, track_record
+
+
+def _check_fit(
+    chain: ChainNetwork,
+    env: str,
+    action_mode: str,
+    readout: str | None,
+    obs_dim: int,
+    fields: int | None,
+    n_actions: int,
+) -> None:
+    """The graph's input, readout size and readout node against the env's (clear errors)."""
+    if readout is not None and readout != chain.readout_node:
+        raise DeployError(
+            f"--readout {readout!r} is not the graph's readout: the chain ends with "
+            f"{chain.readout_node or 'no readout node (its last layer is read out)'!r}"
+        )
+    if chain.n_in != obs_dim * (fields or 1):
+        per = f" x {fields} receptive fields" if fields else ""
+        raise DeployError(
+            f"the graph takes {chain.n_in} inputs; env {env!r} observes {obs_dim} values{per}"
+        )
+    if chain.n_out != n_actions:
+        raise DeployError(
+            f"the graph's readout gives {chain.n_out} values; env {env!r} ({action_mode}) needs "
+            f"{n_actions}"
+        )
+
+
 def write_manifest(
     graph_path: Path,
     env: str,
@@ -78,9 +129,7 @@ def write_manifest(
     force: bool,
 ) -> Path:
     """Check ``graph_path`` against the env and write its manifest beside it."""
-    from snnkart.envs import make, resolve_env_name
-    from snnkart.envs.spec import env_spec, spec_hash
-    from snnkart.envs.tracks import TrackError, embed_track, load_track
+    from snnkart.envs.spec import spec_hash
 
     graph_path = Path(graph_path)
     out = manifest_path(graph_path)
@@ -89,36 +138,10 @@ def write_manifest(
     if num_steps < 1:
         raise DeployError(f"--num-steps must be at least 1, not {num_steps}")
     chain = load_open_chain(graph_path, dt, discretisation)
-    if readout is not None and readout != chain.readout_node:
-        raise DeployError(
-            f"--readout {readout!r} is not the graph's readout: the chain ends with "
-            f"{chain.readout_node or 'no readout node (its last layer is read out)'!r}"
-        )
-    try:
-        kart = make(resolve_env_name(env), track=load_track(track), action_mode=action_mode)
-    except (TrackError, ValueError) as exc:
-        raise DeployError(f"cannot make env {env!r} on {track!r}: {exc}") from exc
-    try:
-        unwrapped: Any = kart.unwrapped
-        spec = env_spec(unwrapped)
-        space: Any = kart.observation_space
-        low, high = space.low, space.high
-        n_actions = int(getattr(kart.action_space, "n", 2))
-        track_record = embed_track(unwrapped.track, track)
-    finally:
-        kart.close()
+    spec, low, high, n_actions, track_record = _env_facts(env, track, action_mode)
     obs_dim = int(spec["obs_dim"])
     fields = population if encoding == "population" else None
-    if chain.n_in != obs_dim * (fields or 1):
-        per = f" x {fields} receptive fields" if fields else ""
-        raise DeployError(
-            f"the graph takes {chain.n_in} inputs; env {env!r} observes {obs_dim} values{per}"
-        )
-    if chain.n_out != n_actions:
-        raise DeployError(
-            f"the graph's readout gives {chain.n_out} values; env {env!r} ({action_mode}) needs "
-            f"{n_actions}"
-        )
+    _check_fit(chain, env, action_mode, readout, obs_dim, fields, n_actions)
     manifest = Manifest(
         schema=MANIFEST_SCHEMA,
         nir_file=graph_path.name,
