@@ -20,7 +20,7 @@ from snnkart.envs.config import EnvConfig
 from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE, RENDER_FPS
 from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.geometry import nearest_point
-from snnkart.envs.lidar import cast_rays, ray_offsets
+from snnkart.envs.lidar import cast_rays, ray_ends, ray_offsets
 from snnkart.envs.observation import ObsField, observation_layout, observation_space
 from snnkart.envs.reward import Stall, StandStill, step_terms
 from snnkart.envs.starts import pick_start
@@ -37,10 +37,7 @@ ConfigT = TypeVar("ConfigT", bound=EnvConfig)
 class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     """Base class; see :class:`GridEnv`, :class:`GazeboEnv` and :class:`SteerEnv`."""
 
-    metadata = {  # noqa: RUF012  (gymnasium's convention)
-        "render_modes": ["human", "rgb_array"],
-        "render_fps": RENDER_FPS,
-    }
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": RENDER_FPS}  # noqa: RUF012
     config_class: ClassVar[type[EnvConfig]] = EnvConfig
     # Per-episode state, set by _reset_state() and reset().
     _x: float
@@ -313,16 +310,21 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._last_terms = {}
         self._episode_return = 0.0
 
-    def _observe(self) -> np.ndarray:
+    def _observe(self, lidar: np.ndarray | None = None) -> np.ndarray:
+        """The observation; ``lidar``: measured ray distances instead of cast ones (ROS)."""
         n = self._lidar.shape[0]
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
-        cast_rays(self._x, self._y, self._ray_angles, self._segments, self._ray_range, self._lidar)
+        if lidar is None:
+            cast_rays(
+                self._x, self._y, self._ray_angles, self._segments, self._ray_range, self._lidar
+            )
+        else:
+            self._lidar[:] = lidar
         obs = np.empty(self._obs_dim, dtype=np.float32)
         obs[:n] = self._lidar
         k = self._write_kinematics(obs, n)
-        # The next checkpoint's direction along the shortest drivable path (around corners)
-        # and its geodesic distance; straight-line values where those are undefined (the
-        # kart touching the line, or behind the checkpoint it just passed).
+        # The next checkpoint's way along the shortest drivable path and its geodesic distance
+        # (straight-line values where undefined: touching the line, behind the one passed).
         cp = self._next_cp
         if self._geo_k != cp:
             self._geo_k, self._geo_d = cp, self._geodesic.distance(cp, self._x, self._y)
@@ -403,10 +405,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
     @property
     def lidar_hits(self) -> np.ndarray:
         """Ray end points of the last observation, px, shape ``[n_rays, 2]``."""
-        d = self._lidar * self._ray_range
-        return np.stack(
-            [self._x + d * np.cos(self._ray_angles), self._y + d * np.sin(self._ray_angles)], 1
-        )
+        return ray_ends(self._x, self._y, self._ray_angles, self._lidar * self._ray_range)
 
     def describe_action(self, action: Any) -> str:
         """Human-readable name of an action (for the side panel)."""

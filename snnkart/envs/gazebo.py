@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -11,6 +12,55 @@ from snnkart.envs.base import KartEnv
 from snnkart.envs.config import GazeboConfig
 from snnkart.envs.constants import PIXELS_PER_METRE
 from snnkart.envs.observation import ObsField
+
+
+@dataclass
+class DiffDrive:
+    """Gazebo's action model: how an action moves the commanded linear speed ``v`` (px/s along
+    the heading) and turn rate ``w`` (rad/s, clockwise on screen). The env applies it to its
+    body; a ROS node (:mod:`snnkart.ros`) turns it into ``cmd_vel`` setpoints."""
+
+    vmax: float
+    wmax: float
+    dv: float  # linear change per step, px/s
+    decay: float  # of the turn rate per step
+    drag: float  # the linear speed is divided by it after each step (discrete actions)
+    discrete: bool
+    v: float = 0.0
+    w: float = 0.0
+
+    @classmethod
+    def of(cls, p: Any, discrete: bool) -> DiffDrive:
+        """From a :class:`~snnkart.envs.config.GazeboPhysics`."""
+        ppm = PIXELS_PER_METRE
+        return cls(p.max_linear_m_s * ppm, p.max_angular_rad_s, p.linear_step_m_s * ppm,
+                   p.angular_decay, p.drag_per_step, discrete)  # fmt: skip
+
+    def command(self, action: Any) -> tuple[float, float]:
+        """Apply ``action``; the velocity to drive at during this step."""
+        w_cmd = 0.0
+        if self.discrete:
+            a = int(action)
+            if a == 1:
+                self.v = min(self.v + self.dv, self.vmax)
+            elif a == 2:
+                self.v = max(self.v - self.dv, 0.0)
+            elif a == 3:
+                w_cmd = -self.wmax
+            elif a == 4:
+                w_cmd = self.wmax
+        else:
+            lin, ang = (float(a) for a in np.clip(action, -1.0, 1.0))
+            self.v += min(max(lin * self.vmax - self.v, -self.dv), self.dv)
+            w_cmd = ang * self.wmax
+        self.w = self.w * self.decay + (1.0 - self.decay) * w_cmd
+        return self.v, self.w
+
+    def coast(self) -> float:
+        """After the step: discrete control's drag on the linear speed; the new speed."""
+        if self.discrete:
+            self.v /= self.drag
+        return self.v
 
 
 class GazeboEnv(KartEnv[GazeboConfig]):
@@ -81,32 +131,13 @@ class GazeboEnv(KartEnv[GazeboConfig]):
         return self.config.physics.time_limit_factor
 
     def _reset_vehicle(self) -> None:
-        p = self.config.physics
+        self._drive = DiffDrive.of(self.config.physics, self.action_mode == "discrete")
         self._v = 0.0  # px/s along the heading
         self._w = 0.0  # rad/s, clockwise on screen
-        self._vmax = p.max_linear_m_s * PIXELS_PER_METRE
-        self._wmax = p.max_angular_rad_s
-        self._dv = p.linear_step_m_s * PIXELS_PER_METRE
-        self._decay = p.angular_decay
-        self._drag = p.drag_per_step
+        self._vmax, self._wmax = self._drive.vmax, self._drive.wmax
 
     def _apply_action(self, action: Any) -> None:
-        w_cmd = 0.0
-        if self.action_mode == "discrete":
-            a = int(action)
-            if a == 1:
-                self._v = min(self._v + self._dv, self._vmax)
-            elif a == 2:
-                self._v = max(self._v - self._dv, 0.0)
-            elif a == 3:
-                w_cmd = -self._wmax
-            elif a == 4:
-                w_cmd = self._wmax
-        else:
-            lin, ang = (float(a) for a in np.clip(action, -1.0, 1.0))
-            self._v += min(max(lin * self._vmax - self._v, -self._dv), self._dv)
-            w_cmd = ang * self._wmax
-        self._w = self._w * self._decay + (1.0 - self._decay) * w_cmd
+        self._v, self._w = self._drive.command(action)
         h = self._heading
         self._body.velocity = (self._v * math.cos(h), self._v * math.sin(h))
         self._body.angular_velocity = self._w
@@ -114,8 +145,7 @@ class GazeboEnv(KartEnv[GazeboConfig]):
     def _after_physics(self) -> None:
         self._heading = self._body.angle  # integrated by pymunk from the angular velocity
         self._moved_v = self._v
-        if self.action_mode == "discrete":
-            self._v /= self._drag
+        self._v = self._drive.coast()
 
     def _write_kinematics(self, out: np.ndarray, start: int) -> int:
         out[start] = self._v / self._vmax
@@ -123,6 +153,28 @@ class GazeboEnv(KartEnv[GazeboConfig]):
         out[start + 2] = math.cos(self._heading)
         out[start + 3] = math.sin(self._heading)
         return start + 4
+
+    def observe_measured(
+        self, x: float, y: float, heading: float, v: float, w: float, next_cp: int,
+        lidar: np.ndarray,
+    ) -> np.ndarray:  # fmt: skip
+        """The observation this env builds for a robot at ``(x, y)`` px, ``heading`` (rad,
+        clockwise on screen), moving at ``v`` px/s and turning at ``w`` rad/s (clockwise), with
+        ``next_cp`` to pass next and measured normalised ray distances ``lidar``: what a ROS
+        node (:mod:`snnkart.ros`) gives the policy. The env's own episode is not advanced."""
+        self._x, self._y, self._heading, self._v, self._w = x, y, heading, v, w
+        self._next_cp, self._geo_k = next_cp, -1  # the path distance from this position
+        return self._observe(np.asarray(lidar, dtype=np.float64))
+
+    @property
+    def velocity(self) -> tuple[float, float]:
+        """The velocity state: forward px/s and turn rate rad/s (clockwise), as observed."""
+        return self._v, self._w
+
+    @property
+    def ray_geometry(self) -> tuple[np.ndarray, float]:
+        """The rays' directions relative to the heading (rad, clockwise) and their range, px."""
+        return self._ray_offsets, self._ray_range
 
     @property
     def speed_m_s(self) -> float:

@@ -76,3 +76,8 @@ def ray_offsets(n_rays: int, fov: float) -> np.ndarray:
     if n_rays == 1:
         return np.zeros(1)
     return np.linspace(-fov / 2.0, fov / 2.0, n_rays)
+
+
+def ray_ends(x: float, y: float, angles: np.ndarray, distances: np.ndarray) -> np.ndarray:
+    """The end points of rays from ``(x, y)`` at absolute ``angles``, px, shape ``[n, 2]``."""
+    return np.stack([x + distances * np.cos(angles), y + distances * np.sin(angles)], 1)

@@ -1,0 +1,46 @@
+"""Import ROS 1's Python packages (Debian's, for the system Python) into snnkart's Python.
+
+Debian's ``python3-rospy`` and the message packages live in ``/usr/lib/python3/dist-packages``.
+They are pure Python and work from the project's Python 3.10 when that directory is *appended*
+to ``sys.path``, after the project's own site-packages, so numpy, torch and everything else
+still come from the project's environment (prepending it would shadow them). This happens only
+here, when the ROS bridge is used, never for the whole environment.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from types import ModuleType
+
+from snnkart.errors import SnnkartError
+
+ROS_DIST_PACKAGES = "/usr/lib/python3/dist-packages"
+DEBIAN_PACKAGES = (
+    "python3-rospy python3-rosmaster python3-sensor-msgs python3-geometry-msgs python3-nav-msgs"
+)
+
+
+class RosUnavailableError(SnnkartError, RuntimeError):
+    """ROS 1's Python packages are not installed."""
+
+
+def import_ros() -> dict[str, ModuleType]:
+    """rospy and the message modules the bridge uses, or a clear error saying what to install."""
+    if ROS_DIST_PACKAGES not in sys.path:
+        sys.path.append(ROS_DIST_PACKAGES)
+    modules = {}
+    for name in (
+        "rospy",
+        "sensor_msgs.msg",
+        "nav_msgs.msg",
+        "geometry_msgs.msg",
+        "rosgraph_msgs.msg",
+    ):
+        try:
+            modules[name] = importlib.import_module(name)
+        except ImportError as exc:
+            raise RosUnavailableError(
+                f"ROS 1 is not installed ({exc}); on Debian: apt-get install {DEBIAN_PACKAGES}"
+            ) from exc
+    return modules
