@@ -6,58 +6,22 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import socket
 import subprocess
 import sys
-import time
-import xmlrpc.client
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from ros_helpers import MISSING, ROSMASTER, rosmaster
 
-ROSMASTER = shutil.which("rosmaster")
-pytestmark = pytest.mark.skipif(
-    ROSMASTER is None,
-    reason="optional: ROS 1 is not installed (apt-get install python3-rospy python3-rosmaster "
-    "python3-sensor-msgs python3-geometry-msgs python3-nav-msgs)",
-)
+pytestmark = pytest.mark.skipif(ROSMASTER is None, reason=MISSING)
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @pytest.fixture
 def master() -> Iterator[str]:
-    """A rosmaster of its own on loopback, stopped afterwards."""
-    port = _free_port()
-    uri = f"http://127.0.0.1:{port}/"
-    env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1"}
-    proc = subprocess.Popen([str(ROSMASTER), "--core", "-p", str(port)], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
-    try:
-        deadline = time.monotonic() + 20
-        while True:
-            try:
-                xmlrpc.client.ServerProxy(uri).getPid("/test")
-                break
-            except OSError:
-                if time.monotonic() > deadline or proc.poll() is not None:
-                    raise RuntimeError("rosmaster did not start") from None
-                time.sleep(0.1)
+    with rosmaster() as uri:
         yield uri
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 CHILD = r"""

@@ -15,6 +15,7 @@ from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.energy import plot_app, report
 from snnkart.cli.guard import fail, guard, interrupted_exit
 from snnkart.cli.nir import nir_app
+from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
 from snnkart.errors import SnnkartError
@@ -332,6 +333,7 @@ app.command()(sweep)
 app.command()(study)
 app.add_typer(plot_app, name="plot")
 app.add_typer(nir_app, name="nir")
+app.add_typer(ros_app, name="ros")
 
 
 def main() -> None:

@@ -118,6 +118,7 @@ class GazeboEnv(KartEnv[GazeboConfig]):
     discrete_actions = 5
     egocentric = True
     ACTION_NAMES: ClassVar[tuple[str, ...]] = ("none", "accelerate", "brake", "left", "right")
+    _velocity_override: tuple[float, float] | None = None  # set_velocity's, for one step
 
     def _kinematic_fields(self) -> tuple[ObsField, ...]:
         return (
@@ -136,8 +137,22 @@ class GazeboEnv(KartEnv[GazeboConfig]):
         self._w = 0.0  # rad/s, clockwise on screen
         self._vmax, self._wmax = self._drive.vmax, self._drive.wmax
 
+    def set_velocity(self, v_m_s: float, w_ccw: float) -> None:
+        """Drive the next step at this velocity (a ``cmd_vel`` setpoint, m/s and rad/s
+        counter-clockwise, clipped to the physics limits) instead of an action's: what the ROS
+        simulator bridge applies."""
+        v = min(max(v_m_s * PIXELS_PER_METRE, -self._drive.vmax), self._drive.vmax)
+        w = min(max(-w_ccw, -self._drive.wmax), self._drive.wmax)
+        self._velocity_override = (v, w)
+
     def _apply_action(self, action: Any) -> None:
-        self._v, self._w = self._drive.command(action)
+        override = self._velocity_override
+        if override is not None:  # a cmd_vel setpoint (set_velocity)
+            self._velocity_override = None
+            self._drive.v, self._drive.w = override
+            self._v, self._w = override
+        else:
+            self._v, self._w = self._drive.command(action)
         h = self._heading
         self._body.velocity = (self._v * math.cos(h), self._v * math.sin(h))
         self._body.angular_velocity = self._w

@@ -44,3 +44,33 @@ def import_ros() -> dict[str, ModuleType]:
                 f"ROS 1 is not installed ({exc}); on Debian: apt-get install {DEBIAN_PACKAGES}"
             ) from exc
     return modules
+
+
+def check_master() -> str:
+    """The master's URI (``ROS_MASTER_URI``), or a clear error if none answers there: rospy's
+    ``init_node`` would otherwise wait for one forever."""
+    import os
+    import socket
+    import xmlrpc.client
+
+    uri = os.environ.get("ROS_MASTER_URI", "http://localhost:11311/")
+    previous = socket.getdefaulttimeout()
+    socket.setdefaulttimeout(3.0)
+    try:
+        xmlrpc.client.ServerProxy(uri).getPid("/snnkart")
+    except (OSError, xmlrpc.client.Error) as exc:
+        raise RosUnavailableError(
+            f"no rosmaster reachable at {uri} ({exc}); start one (rosmaster --core -p PORT) and "
+            "set ROS_MASTER_URI to it"
+        ) from exc
+    finally:
+        socket.setdefaulttimeout(previous)
+    return uri
+
+
+def init_node(name: str) -> ModuleType:
+    """rospy, with this process's node started on the running master."""
+    check_master()
+    rospy = import_ros()["rospy"]
+    rospy.init_node(name, anonymous=True, disable_signals=True)
+    return rospy

@@ -1,0 +1,117 @@
+"""The bridge pair over a real rosmaster: ``snnkart ros sim`` (the gazebo env behind /scan,
+/odom, /clock and /cmd_vel) and ``snnkart ros drive`` (a pretrained gazebo policy,
+``tests/data/policies/gazebo-snn``, made by ``scripts/make_test_policy.py --env gazebo``).
+In lock-step the robot drives the same trajectory as the policy in the env directly; in real
+time it still finishes. Both lap times are printed."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ros_helpers import MISSING, ROSMASTER, ros_env, rosmaster
+
+from snnkart.eval.episodes import run_episodes
+
+pytestmark = pytest.mark.skipif(ROSMASTER is None, reason=MISSING)
+POLICY = Path(__file__).parent / "data" / "policies" / "gazebo-snn"
+SNNKART = str(Path(sys.executable).with_name("snnkart"))
+SEED = 10_000
+
+
+def _direct(predictor, env) -> tuple[list[tuple[float, float]], dict]:
+    """The policy in the env directly: its positions and its episode."""
+    positions: list[tuple[float, float]] = []
+    env.reset(seed=SEED)  # the first position, as the simulator records it
+    positions.append(tuple(env.unwrapped.position))
+    result = run_episodes(env, predictor, 1, seed=SEED,
+                          on_step=lambda e: positions.append(tuple(e.unwrapped.position)))  # fmt: skip
+    return positions, result[0].__dict__
+
+
+def _bridge(tmp_path: Path, policy: Path, backend: str, lock_step: bool) -> dict:
+    mode = "--lock-step" if lock_step else "--real-time"
+    out = tmp_path / f"sim-{backend}-{mode[2:]}.json"
+    with rosmaster() as uri:
+        env = ros_env(uri)
+        sim = subprocess.Popen([SNNKART, "ros", "sim", mode, "--seed", str(SEED), "--out",
+                                str(out), "--timeout", "60"], env=env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        drive = subprocess.Popen([SNNKART, "ros", "drive", str(policy), "--backend", backend,
+                                  mode, "--max-seconds", "150", "--timeout", "10"], env=env,
+                                 text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        try:
+            _, sim_err = sim.communicate(timeout=200)
+            drive_out, drive_err = drive.communicate(timeout=60)
+        finally:
+            for p in (sim, drive):
+                if p.poll() is None:
+                    p.kill()
+    assert sim.returncode == 0, sim_err[-2000:]
+    assert drive.returncode == 0, drive_err[-2000:]
+    record = json.loads(out.read_text())
+    record["drive"] = json.loads(drive_out.strip().splitlines()[-1])
+    return record
+
+
+@pytest.mark.timeout(300)
+@pytest.mark.parametrize("backend", ["torch", "nir-ref", "lava-sim"])
+def test_lock_step_drives_the_same_trajectory_as_the_env(tmp_path: Path, backend: str) -> None:
+    """torch: the trained policy; nir-ref and lava-sim: its export in fixed point, against the
+    reference of that arithmetic in the env directly (Lava is bit-exact with it)."""
+    from snnkart.backends.reference import NIRReference
+    from snnkart.export.nir_export import export_nir
+    from snnkart.rl.trained import TorchPredictor, load_run
+
+    run = load_run(POLICY)
+    policy = POLICY
+    if backend == "torch":
+        predictor = TorchPredictor(run)
+    else:
+        policy, _ = export_nir(run, tmp_path / "policy.nir")
+        predictor = NIRReference(policy, "fixed")
+    env = run.config.make_env(track=run.track)
+    try:
+        positions, episode = _direct(predictor, env)
+    finally:
+        env.close()
+    if backend == "torch":
+        assert episode["finished"], episode  # the fixture drives
+    record = _bridge(tmp_path, policy, backend, lock_step=True)
+    assert record["finished"] == episode["finished"], record["ended"]
+    assert record["steps"] == len(positions) - 1, record["ended"]
+    np.testing.assert_allclose(np.array(record["positions"]), np.array(positions), atol=1e-6)
+    if episode["finished"]:
+        assert record["lap_time"] == pytest.approx(episode["lap_time"])
+        assert record["drive"]["finished"] and record["drive"]["stopped"] == "finished the lap"
+    print(f"lock-step {backend}: {record['ended']}, lap time {record['lap_time']} s "
+          f"({record['steps']} steps, {record['wall_seconds']:.1f} s wall-clock, median "
+          f"{record['drive']['latency_ms_median']:.2f} ms from messages to Twist)")  # fmt: skip
+
+
+@pytest.mark.timeout(300)
+def test_real_time_still_finishes(tmp_path: Path) -> None:
+    record = _bridge(tmp_path, POLICY, "torch", lock_step=False)
+    assert record["finished"], record["ended"]
+    print(f"real-time lap time {record['lap_time']:.2f} s ({record['steps']} steps, "
+          f"{record['wall_seconds']:.1f} s wall-clock)")  # fmt: skip
+
+
+@pytest.mark.timeout(60)
+def test_drive_refuses_without_a_master_and_for_other_envs(tmp_path: Path) -> None:
+    env = ros_env("http://127.0.0.1:9/")  # nothing listens there
+    start = time.monotonic()
+    result = subprocess.run([SNNKART, "ros", "drive", str(POLICY)], env=env, text=True,
+                            capture_output=True, timeout=50)  # fmt: skip
+    assert result.returncode == 2 and "no rosmaster reachable" in result.stderr
+    assert time.monotonic() - start < 30
+    grid = Path(__file__).parent / "data" / "policies" / "grid-snn"
+    with rosmaster() as uri:
+        result = subprocess.run([SNNKART, "ros", "drive", str(grid)], env=ros_env(uri),
+                                text=True, capture_output=True, timeout=50)  # fmt: skip
+    assert result.returncode == 2 and "trained on the grid env" in result.stderr
