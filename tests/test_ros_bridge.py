@@ -115,3 +115,55 @@ def test_drive_refuses_without_a_master_and_for_other_envs(tmp_path: Path) -> No
         result = subprocess.run([SNNKART, "ros", "drive", str(grid)], env=ros_env(uri),
                                 text=True, capture_output=True, timeout=50)  # fmt: skip
     assert result.returncode == 2 and "trained on the grid env" in result.stderr
+
+
+LISTENER = r"""
+import json, sys, time
+from snnkart.ros.rospy_import import init_node, import_ros
+rospy = init_node("listener")
+geometry = import_ros()["geometry_msgs.msg"]
+got = []
+rospy.Subscriber("/cmd_vel", geometry.Twist, lambda m: got.append((m.linear.x, m.angular.z)))
+end = time.monotonic() + float(sys.argv[1])
+while time.monotonic() < end:
+    time.sleep(0.05)
+print(json.dumps({"count": len(got), "last": got[-1] if got else None,
+                  "moving": sum(1 for g in got if g != (0.0, 0.0))}))
+"""
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("how", ["stale", "ctrl-c"])
+def test_the_robot_is_stopped_when_input_ends_or_on_ctrl_c(tmp_path: Path, how: str) -> None:
+    """The simulator stops publishing after 2 s (stale input), or the driver gets SIGINT while
+    driving: either way the last command on /cmd_vel is a zero Twist, and the driver says why."""
+    import signal
+
+    with rosmaster() as uri:
+        env = ros_env(uri)
+        listener = subprocess.Popen([sys.executable, "-c", LISTENER, "12"], env=env, text=True,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        steps = "120" if how == "stale" else "1500"  # 2 s, or more than the test lasts
+        sim = subprocess.Popen([SNNKART, "ros", "sim", "--real-time", "--max-steps", steps,
+                                "--seed", str(SEED)], env=env, text=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        drive = subprocess.Popen([SNNKART, "ros", "drive", str(POLICY), "--real-time",
+                                  "--timeout", "1"], env=env, text=True,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        try:
+            if how == "ctrl-c":
+                time.sleep(6)  # driving by now (start-up takes a few seconds)
+                drive.send_signal(signal.SIGINT)
+            drive_out, drive_err = drive.communicate(timeout=60)
+            heard = json.loads(listener.communicate(timeout=30)[0].strip().splitlines()[-1])
+            sim.communicate(timeout=30)
+        finally:
+            for p in (sim, drive, listener):
+                if p.poll() is None:
+                    p.kill()
+    assert heard["moving"] > 10, heard  # it drove
+    assert heard["last"] == [0.0, 0.0], heard  # and was stopped
+    if how == "stale":
+        assert drive.returncode == 0 and "no scan or odometry for 1 s" in drive_out, drive_err
+    else:
+        assert drive.returncode == 130 and "stopped" in drive_err, drive_err
