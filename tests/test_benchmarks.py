@@ -186,3 +186,19 @@ def test_bench_sparsity_trains_deploys_and_records_counts(tmp_path):
     stamp = Path(run["deploy_json"]).stat().st_mtime
     run_benchmark("bench_sparsity", *args, timeout=60)
     assert Path(run["deploy_json"]).stat().st_mtime == stamp  # reused, not redone
+
+
+@pytest.mark.timeout(300)
+def test_bench_ros_measures_every_backend_over_a_real_rosmaster(tmp_path):
+    import shutil
+
+    if shutil.which("rosmaster") is None:
+        pytest.skip("optional: ROS 1 is not installed (apt-get install python3-rospy ...)")
+    out = tmp_path / "ros.json"
+    run_benchmark("bench_ros", "--out", str(out), timeout=280)
+    results = json.loads(out.read_text())
+    check_machine(results)
+    assert set(results["backends"]) == {"torch", "nir-ref", "lava-sim"}
+    for backend in results["backends"].values():
+        assert backend["ended"] == "finished" and backend["latency_ms_median"] > 0
+    assert results["latency_vs_torch"]["torch"] == 1.0

@@ -79,4 +79,5 @@ def run_drive(
         "stopped": result.stopped,
         "finished": result.finished,
         "latency_ms_median": 1000 * lat[len(lat) // 2] if lat else None,
+        "latency_ms_p95": 1000 * lat[int(0.95 * (len(lat) - 1))] if lat else None,
     }
