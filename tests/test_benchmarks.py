@@ -202,3 +202,16 @@ def test_bench_ros_measures_every_backend_over_a_real_rosmaster(tmp_path):
     for backend in results["backends"].values():
         assert backend["ended"] == "finished" and backend["latency_ms_median"] > 0
     assert results["latency_vs_torch"]["torch"] == 1.0
+
+
+def test_bench_sim2real_trains_both_and_evaluates_each_in_both_envs(tmp_path):
+    out = tmp_path / "s2r.json"
+    run_benchmark("bench_sim2real", "--steps", "1024", "--episodes", "2", "--work",
+                  str(tmp_path / "runs"), "--out", str(out), timeout=240)  # fmt: skip
+    results = json.loads(out.read_text())
+    check_machine(results)
+    assert set(results["results"]) == {"trained clean", "trained with noise"}
+    for by_env in results["results"].values():
+        assert set(by_env) == {"clean env", "noisy env"}
+    noisy = tmp_path / "runs" / "trained-with-noise" / "config.toml"
+    assert "action_delay_steps = 2" in noisy.read_text()

@@ -23,6 +23,7 @@ from snnkart.envs.geometry import nearest_point
 from snnkart.envs.lidar import cast_rays, ray_ends, ray_offsets
 from snnkart.envs.observation import ObsField, observation_layout, observation_space
 from snnkart.envs.reward import Stall, StandStill, step_terms
+from snnkart.envs.sim2real import Sim2Real
 from snnkart.envs.starts import pick_start
 from snnkart.envs.tracks import Track, load_track
 from snnkart.envs.world import build_world
@@ -100,6 +101,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         )
         self._space, self._body = world.space, world.body
         self._stand_still = StandStill(self.config.reward.stand_still_radius_m * PIXELS_PER_METRE)
+        self._sim2real = Sim2Real(self.config.sim2real, self.action_space, self.IDLE_ACTION)
         self._reset_state()
         self._reset_vehicle()
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
@@ -186,7 +188,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             raise RuntimeError("call reset() before step(): the episode has ended or not begun")
         x0, y0, speed0 = self._x, self._y, self.speed_m_s
         align0, align0_cp = self._align, self._geo_k  # set by the last _observe()
-        self._apply_action(action)
+        self._apply_action(self._sim2real.act(action))
         self._touched_wall = False
         self._space.step(DT)
         self._x, self._y = self._body.position
@@ -299,16 +301,13 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._finished = False
         self._geo_k, self._geo_d = -1, math.nan  # cached distance of the last position
         self._align = 0.0  # checkpoint_cos of the last observation
-        self._passed_this_step = 0
-        self._touched_wall = False
-        self._steps = 0
+        self._passed_this_step, self._touched_wall, self._steps = 0, False, 0
         self._stand_still.restart(*self.track.spawn_position)
         self._stall = Stall()
         self._checkpoint_times = []
         self._needs_reset = True
-        self._last_action = None
-        self._last_terms = {}
-        self._episode_return = 0.0
+        self._last_action, self._last_terms, self._episode_return = None, {}, 0.0
+        self._sim2real.reset()
 
     def _observe(self, lidar: np.ndarray | None = None) -> np.ndarray:
         """The observation; ``lidar``: measured ray distances instead of cast ones (ROS)."""
@@ -318,6 +317,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             cast_rays(
                 self._x, self._y, self._ray_angles, self._segments, self._ray_range, self._lidar
             )
+            self._sim2real.sense(self._lidar, self._ray_range, self.np_random)
         else:
             self._lidar[:] = lidar
         obs = np.empty(self._obs_dim, dtype=np.float32)
@@ -416,3 +416,4 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         return "[" + ", ".join(f"{float(a):+.2f}" for a in np.asarray(action).ravel()) + "]"
 
     ACTION_NAMES: ClassVar[tuple[str, ...]] = ()
+    IDLE_ACTION: ClassVar[int] = 0  # the discrete action that does nothing

@@ -133,6 +133,20 @@ class SteerPhysics(_Frozen):
         return math.radians(self.max_steer_deg)
 
 
+class Sim2RealConfig(_Frozen):
+    """Sensor and actuator imperfections for sim-to-real robustness (all off by default)."""
+
+    lidar_noise_m: float = Field(
+        0.0, ge=0.0, description="standard deviation of Gaussian noise on each ray's distance, m"
+    )
+    beam_dropout: float = Field(
+        0.0, ge=0.0, lt=1.0, description="probability that a ray returns nothing (reads 1)"
+    )
+    action_delay_steps: int = Field(
+        0, ge=0, le=30, description="steps between choosing an action and its effect"
+    )
+
+
 class EnvConfig(_Frozen):
     """Settings shared by all kart environments."""
 
@@ -156,6 +170,9 @@ class EnvConfig(_Frozen):
         10.0, gt=0.0, description="distance observation = min(distance / scale, 1)"
     )
     render_scale: float = Field(0.8, gt=0.0, le=4.0, description="pixels on screen per track px")
+    sim2real: Sim2RealConfig | None = Field(
+        None, description="LIDAR noise, beam dropout and actuation delay (None: a perfect robot)"
+    )
     route_clearance_m: float | None = Field(
         None,
         ge=KART_RADIUS_M,

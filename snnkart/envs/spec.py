@@ -46,7 +46,7 @@ def revision_mismatch(saved: Any) -> str | None:
     )
 
 
-_ADDED_UNSET = ("route_clearance_m",)
+_ADDED_UNSET = ("route_clearance_m", "sim2real")
 """Env config fields added after revision 3 began; left out of the spec while unset (None),
 so runs made before they existed still match."""
 

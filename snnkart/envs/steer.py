@@ -71,6 +71,7 @@ class SteerEnv(KartEnv[SteerConfig]):
     ACTION_NAMES: ClassVar[tuple[str, ...]] = tuple(
         f"{t}+{s}" for t in ("brake", "coast", "throttle") for s in ("left", "straight", "right")
     )
+    IDLE_ACTION: ClassVar[int] = 4  # coast+straight
 
     def _kinematic_fields(self) -> tuple[ObsField, ...]:
         return (
