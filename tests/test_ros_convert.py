@@ -101,3 +101,15 @@ def test_the_builder_refuses_other_envs() -> None:
             ObservationBuilder(env)
     finally:
         env.close()
+
+
+def test_commands_stay_within_the_robots_limits() -> None:
+    env = make("gazebo", track="small_S")
+    try:
+        free, limited = VelocityCommands(env), VelocityCommands(env, 0.22, 1.0)
+        out_free = [free(a) for a in [1] * 80 + [3] * 10]
+        out_lim = [limited(a) for a in [1] * 80 + [3] * 10]
+    finally:
+        env.close()
+    assert max(v for v, _ in out_free) > 1.5 and max(abs(w) for _, w in out_free) > 1.4
+    assert max(v for v, _ in out_lim) == 0.22 and max(abs(w) for _, w in out_lim) == 1.0

@@ -58,7 +58,7 @@ def _policy(policy: Path, backend: str, precision: str) -> tuple[Any, Any]:
 
 def run_drive(
     policy: Path, backend: str, precision: str, lock_step: bool, timeout: float,
-    max_seconds: float | None,
+    max_seconds: float | None, max_linear: float | None = None, max_angular: float | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     from snnkart.ros.node import DriveNode
     from snnkart.ros.rospy_import import check_master, init_node
@@ -67,7 +67,8 @@ def run_drive(
     predictor, env = _policy(policy, backend, precision)
     try:
         init_node("snnkart_drive")
-        result = DriveNode(env, predictor, lock_step, timeout).spin(max_seconds)
+        node = DriveNode(env, predictor, lock_step, timeout, limits=(max_linear, max_angular))
+        result = node.spin(max_seconds)
     finally:
         env.close()
         close = getattr(predictor, "close", None)

@@ -52,13 +52,21 @@ def drive(
         float, typer.Option(help="stop the robot when scans or odometry are this old, s")
     ] = 2.0,
     max_seconds: Annotated[float | None, typer.Option(help="stop after this long")] = None,
+    max_linear: Annotated[
+        float | None, typer.Option(help="the robot's speed limit, m/s (default: the env's)")
+    ] = None,
+    max_angular: Annotated[
+        float | None, typer.Option(help="the robot's turn-rate limit, rad/s (default: the env's)")
+    ] = None,
 ) -> None:
     """Subscribe to /scan and /odom, run the policy, publish /cmd_vel within the robot's limits;
     a zero Twist on stale input, a failed backend, Ctrl-C and exit."""
     from snnkart.app.ros_bridge import run_drive
 
     summary = guard(
-        lambda: run_drive(policy, backend, precision, lock_step, timeout, max_seconds),
+        lambda: run_drive(
+            policy, backend, precision, lock_step, timeout, max_seconds, max_linear, max_angular
+        ),
         "the robot was stopped (zero cmd_vel)",
     )
     typer.echo(json.dumps(summary))

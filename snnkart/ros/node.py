@@ -44,11 +44,12 @@ class DriveResult:
 
 class DriveNode:
     def __init__(
-        self, env: Any, predictor: Any, lock_step: bool, timeout: float = 2.0, rate: float = 1 / DT
-    ) -> None:
+        self, env: Any, predictor: Any, lock_step: bool, timeout: float = 2.0,
+        rate: float = 1 / DT, limits: tuple[float | None, float | None] = (None, None),
+    ) -> None:  # fmt: skip
         self.ros = import_ros()
         self.builder = ObservationBuilder(env)
-        self.commands = VelocityCommands(env)
+        self.commands = VelocityCommands(env, *limits)
         self.predictor = predictor
         self.lock_step, self.timeout, self.rate = lock_step, timeout, rate
         self.lock = threading.Lock()
