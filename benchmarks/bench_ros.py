@@ -3,9 +3,10 @@
 The bridge pair (``snnkart ros sim --lock-step`` and ``snnkart ros drive``) over a rosmaster
 on loopback drives one seeded episode of the pretrained gazebo SNN
 (``tests/data/policies/gazebo-snn``) on each backend: torch (the trained policy), nir-ref fixed
-and lava-sim fixed (its export). Per backend: the node's median and 95th-percentile time from
-the (scan, odom) pair to the published Twist, the steps, the lap time, and the wall-clock per
-simulated step (the round trip through ROS included).
+and lava-sim fixed (its export), in lock-step. Per backend: the node's median and
+95th-percentile time from the (scan, odom) pair to the published Twist, the steps, the lap
+time, and the wall-clock per simulated step (the round trip through ROS included); and the
+torch policy once more in real time (60 steps per second), for its lap time.
 
     python -m benchmarks.bench_ros [--policy DIR]
 
@@ -28,15 +29,15 @@ POLICY = Path(__file__).resolve().parents[1] / "tests" / "data" / "policies" / "
 SNNKART = str(Path(sys.executable).with_name("snnkart"))
 
 
-def bridge(policy: Path, backend: str, seed: int, work: Path) -> dict:
-    out = work / f"sim-{backend}.json"
+def bridge(policy: Path, backend: str, seed: int, work: Path, mode: str = "--lock-step") -> dict:
+    out = work / f"sim-{backend}{mode}.json"
     with rosmaster() as uri:
         env = ros_env(uri)
-        sim = subprocess.Popen([SNNKART, "ros", "sim", "--lock-step", "--seed", str(seed),
+        sim = subprocess.Popen([SNNKART, "ros", "sim", mode, "--seed", str(seed),
                                 "--out", str(out)], env=env, text=True,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
         drive = subprocess.run([SNNKART, "ros", "drive", str(policy), "--backend", backend,
-                                "--lock-step", "--max-seconds", "300", "--timeout", "20"],
+                                mode, "--max-seconds", "300", "--timeout", "20"],
                                env=env, text=True, capture_output=True, timeout=400)  # fmt: skip
         sim.communicate(timeout=60)
     if drive.returncode != 0:
@@ -70,11 +71,14 @@ def main() -> None:
                                 ("lava-sim", nir_path)):  # fmt: skip
             results[backend] = bridge(policy, backend, args.seed, work)
             print(backend, results[backend])
+        real_time = bridge(args.policy, "torch", args.seed, work, "--real-time")
+        print("torch in real time", real_time)
     base = results["torch"]["latency_ms_median"]
     ratios = {k: v["latency_ms_median"] / base for k, v in results.items()}
     out = output_path("bench_ros", args.out)
     out.write_text(json.dumps({"machine": machine_info(), "policy": str(args.policy),
                                "seed": args.seed, "backends": results,
+                               "torch_real_time": real_time,
                                "latency_vs_torch": ratios}, indent=2) + "\n")  # fmt: skip
     print(f"wrote {out}; median latency relative to torch: {ratios}")
 

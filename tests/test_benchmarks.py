@@ -202,6 +202,7 @@ def test_bench_ros_measures_every_backend_over_a_real_rosmaster(tmp_path):
     for backend in results["backends"].values():
         assert backend["ended"] == "finished" and backend["latency_ms_median"] > 0
     assert results["latency_vs_torch"]["torch"] == 1.0
+    assert results["torch_real_time"]["ended"] == "finished"
 
 
 def test_bench_sim2real_trains_both_and_evaluates_each_in_both_envs(tmp_path):
