@@ -315,3 +315,14 @@ def test_an_li_readout_decides_the_action_from_its_last_membrane(tmp_path: Path)
     np.testing.assert_allclose(out, v, rtol=1e-5)
     rates = ro.weight @ last.mean(axis=0) + ro.bias
     assert last.sum() > 0 and not np.allclose(out, rates)  # not the rate readout
+
+
+def test_info_takes_dt_and_discretisation_from_the_manifest(tmp_path: Path) -> None:
+    path = _grid_policy(tmp_path)
+    made = snnkart("nir", "manifest", str(path), "--env", "grid", "--dt", "1e-3",
+                   "--discretisation", "exact")  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    facts = json.loads(snnkart("nir", "info", str(path), "--json").stdout)
+    assert facts["dt"] == 1e-3 and facts["discretisation"] == "exact"
+    assert facts["layers"][0]["beta"] == pytest.approx(float(np.exp(-0.1)))
+    assert "manifest" in facts["dt_source"]

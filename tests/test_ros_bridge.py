@@ -164,6 +164,54 @@ def test_the_robot_is_stopped_when_input_ends_or_on_ctrl_c(tmp_path: Path, how: 
     assert heard["moving"] > 10, heard  # it drove
     assert heard["last"] == [0.0, 0.0], heard  # and was stopped
     if how == "stale":
-        assert drive.returncode == 0 and "no scan or odometry for 1 s" in drive_out, drive_err
+        assert drive.returncode == 0 and "no scan and odometry for 1 s" in drive_out, drive_err
     else:
         assert drive.returncode == 130 and "stopped" in drive_err, drive_err
+
+
+SCANS_ONLY = r"""
+import math, sys, time
+import numpy as np
+from snnkart.ros.rospy_import import init_node, import_ros
+from snnkart.envs import make
+from snnkart.ros.master import ros_env
+rospy = init_node("fake_robot")
+ros = import_ros()
+scan_pub = rospy.Publisher("/scan", ros["sensor_msgs.msg"].LaserScan, queue_size=4)
+odom_pub = rospy.Publisher("/odom", ros["nav_msgs.msg"].Odometry, queue_size=4)
+start = time.monotonic()
+while time.monotonic() - start < 8:
+    scan = ros["sensor_msgs.msg"].LaserScan(angle_min=-math.pi, angle_increment=math.pi / 8,
+                                           range_min=0.1, range_max=3.0, ranges=[2.0] * 16)
+    scan.header.stamp = rospy.Time.now()
+    scan_pub.publish(scan)
+    if time.monotonic() - start < 3:  # the odometry driver dies after 3 s
+        odom = ros["nav_msgs.msg"].Odometry()
+        odom.header.stamp = scan.header.stamp
+        odom.pose.pose.position.x, odom.pose.pose.position.y = 1.8, -4.5
+        odom.pose.pose.orientation.w = 1.0
+        odom_pub.publish(odom)
+    time.sleep(0.02)
+"""
+
+
+@pytest.mark.timeout(90)
+def test_the_robot_is_stopped_when_odometry_alone_goes_silent(tmp_path: Path) -> None:
+    with rosmaster() as uri:
+        env = ros_env(uri)
+        listener = subprocess.Popen([sys.executable, "-c", LISTENER, "10"], env=env, text=True,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        robot = subprocess.Popen([sys.executable, "-c", SCANS_ONLY], env=env, text=True,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+        try:
+            drive = subprocess.run([SNNKART, "ros", "drive", str(POLICY), "--real-time",
+                                    "--timeout", "1"], env=env, text=True, capture_output=True,
+                                   timeout=60)  # fmt: skip
+            heard = json.loads(listener.communicate(timeout=30)[0].strip().splitlines()[-1])
+        finally:
+            for p in (robot, listener):
+                if p.poll() is None:
+                    p.kill()
+    assert drive.returncode == 0, drive.stderr[-2000:]
+    assert "no odometry for 1 s" in drive.stdout, drive.stdout  # the scans kept coming
+    assert heard["count"] > 0 and heard["last"] == [0.0, 0.0], heard

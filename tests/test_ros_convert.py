@@ -112,4 +112,4 @@ def test_commands_stay_within_the_robots_limits() -> None:
     finally:
         env.close()
     assert max(v for v, _ in out_free) > 1.5 and max(abs(w) for _, w in out_free) > 1.4
-    assert max(v for v, _ in out_lim) == 0.22 and max(abs(w) for _, w in out_lim) == 1.0
+    assert max(v for v, _ in out_lim) == 0.22 and 0.99 < max(abs(w) for _, w in out_lim) <= 1.0

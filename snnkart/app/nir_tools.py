@@ -54,13 +54,22 @@ def resolve_dt(path: Path, dt: float | None) -> tuple[float | None, str]:
     return None, "NIR graphs record no time step, and no --dt was given"
 
 
-def run_nir_info(path: Path, dt: float | None, discretisation: str) -> GraphInfo:
+def resolve_discretisation(path: Path, given: str | None) -> str:
+    """``--discretisation`` if given, else the manifest's (a snnkart export), else euler."""
+    if given is not None:
+        return given
+    mpath = manifest_path(path)
+    return Manifest.read(mpath).discretisation if mpath.is_file() else "euler"
+
+
+def run_nir_info(path: Path, dt: float | None, discretisation: str | None) -> GraphInfo:
     graph = read_graph(path)
     step, source = resolve_dt(path, dt)
-    return describe_graph(graph, step, source, discretisation)
+    return describe_graph(graph, step, source, resolve_discretisation(path, discretisation))
 
 
-def load_open_chain(path: Path, dt: float | None, discretisation: str) -> ChainNetwork:
+def load_open_chain(path: Path, dt: float | None, discretisation: str | None) -> ChainNetwork:
+    discretisation = resolve_discretisation(path, discretisation)
     step, _ = resolve_dt(path, dt)
     if step is None:
         raise DeployError(f"{path}: the graph records no time step; pass --dt ({DT_HINT})")
@@ -89,7 +98,7 @@ def run_nir_run(
     out: Path | None,
     check: bool,
     dt: float | None,
-    discretisation: str,
+    discretisation: str | None,
     show: Callable[[dict[str, Any]], None] = lambda summary: None,
 ) -> dict[str, Any]:
     """Run the graph open loop; with ``check``, also on the reference of the same arithmetic

@@ -24,11 +24,11 @@ DtOpt = Annotated[
     ),
 ]
 DiscOpt = Annotated[
-    str,
+    str | None,
     typer.Option(
         "--discretisation",
         help="euler (decay 1 - dt/tau; snntorch, the NIR paper's Lava mapping) or exact "
-        "(exp(-dt/tau))",
+        "(exp(-dt/tau)); default: the manifest's, else euler",
     ),
 ]
 
@@ -37,7 +37,7 @@ DiscOpt = Annotated[
 def info(
     graph: GraphArg,
     dt: DtOpt = None,
-    discretisation: DiscOpt = "euler",
+    discretisation: DiscOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="print JSON")] = False,
 ) -> None:
     """Nodes, edges, shapes, neuron parameters, parameter count, and what runs on nir-ref and
@@ -110,7 +110,7 @@ def run(
         ),
     ] = False,
     dt: DtOpt = None,
-    discretisation: DiscOpt = "euler",
+    discretisation: DiscOpt = None,
 ) -> None:
     """Run a graph open loop on given input from zero state: every layer's spikes and the
     readout, optionally checked against the reference (exit 4 if not bit-exact)."""
@@ -153,7 +153,7 @@ def manifest(
     population: Annotated[
         int | None, typer.Option(help="population encoding: receptive fields per observation")
     ] = None,
-    discretisation: DiscOpt = "euler",
+    discretisation: DiscOpt = None,
     force: Annotated[bool, typer.Option(help="replace an existing manifest")] = False,
 ) -> None:
     """Write the manifest that lets `snnkart deploy` drive the kart with a graph from another
@@ -162,8 +162,8 @@ def manifest(
 
     out = guard(
         lambda: write_manifest(
-            graph, env, track, encoding, readout, dt, discretisation, num_steps, action_mode,
-            population, force,
+            graph, env, track, encoding, readout, dt, discretisation or "euler", num_steps,
+            action_mode, population, force,
         )
     )  # fmt: skip
     typer.echo(f"wrote {out}; run it with: snnkart deploy {graph} --backend nir-ref")

@@ -27,6 +27,7 @@ import numpy as np
 from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
 from snnkart.envs.gazebo import DiffDrive, GazeboEnv
 from snnkart.envs.geometry import segment_distance
+from snnkart.errors import DeployError
 
 PPM = PIXELS_PER_METRE
 
@@ -127,9 +128,15 @@ class VelocityCommands:
     def __init__(self, env: Any, max_linear: float | None = None, max_angular: float | None = None):
         unwrapped = getattr(env, "unwrapped", env)
         physics = unwrapped.config.physics
+        for name, limit in (("max_linear", max_linear), ("max_angular", max_angular)):
+            if limit is not None and not limit > 0:
+                raise DeployError(f"--{name.replace('_', '-')} must be positive, not {limit}")
         self.drive = DiffDrive.of(physics, unwrapped.action_mode == "discrete")
-        self.max_linear = max_linear if max_linear is not None else physics.max_linear_m_s
-        self.max_angular = max_angular if max_angular is not None else physics.max_angular_rad_s
+        self.max_linear = min(max_linear or math.inf, physics.max_linear_m_s)
+        self.max_angular = min(max_angular or math.inf, physics.max_angular_rad_s)
+        # the model's own state stays within the robot's limits, so braking shows at once
+        self.drive.vmax = min(self.drive.vmax, self.max_linear * PPM)
+        self.drive.wmax = min(self.drive.wmax, self.max_angular)
 
     def reset(self) -> None:
         self.drive.v = self.drive.w = 0.0

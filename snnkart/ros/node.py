@@ -55,7 +55,9 @@ class DriveNode:
         self.lock = threading.Lock()
         self.scan: tuple[float, Scan] | None = None
         self.odom: tuple[float, Odom] | None = None
-        self.last_msg = time.monotonic()
+        now = time.monotonic()
+        self.last_seen = {"scan": now, "odometry": now}  # when each last arrived
+        self.pub_lock = threading.Lock()  # a command and the stop never interleave
         self.last_stamp = -1.0
         self.last_cmd = (0.0, 0.0)
         self.result = DriveResult(latencies=[])
@@ -69,8 +71,9 @@ class DriveNode:
     def _on_scan(self, msg: Any) -> None:
         scan = Scan(msg.angle_min, msg.angle_increment, np.asarray(msg.ranges, dtype=np.float64),
                     msg.range_min, msg.range_max)  # fmt: skip
+        self.last_seen["scan"] = time.monotonic()  # outside the lock: a slow act is not silence
         with self.lock:
-            self.scan, self.last_msg = (msg.header.stamp.to_sec(), scan), time.monotonic()
+            self.scan = (msg.header.stamp.to_sec(), scan)
         if self.lock_step:
             self._act_if_paired()
 
@@ -78,8 +81,9 @@ class DriveNode:
         p, q, t = msg.pose.pose, msg.pose.pose.orientation, msg.twist.twist
         odom = Odom(p.position.x, p.position.y, yaw_from_quaternion(q.z, q.w), t.linear.x,
                     t.angular.z)  # fmt: skip
+        self.last_seen["odometry"] = time.monotonic()
         with self.lock:
-            self.odom, self.last_msg = (msg.header.stamp.to_sec(), odom), time.monotonic()
+            self.odom = (msg.header.stamp.to_sec(), odom)
         if self.lock_step:
             self._act_if_paired()
 
@@ -102,7 +106,10 @@ class DriveNode:
         except Exception as exc:  # a failed backend must not leave the robot driving
             self.stop(f"the policy backend failed: {type(exc).__name__}: {exc}")
             return
-        self.publish(*cmd)
+        with self.pub_lock:
+            if self.done.is_set():  # stopped while predicting: the zero stays the last word
+                return
+            self.publish(*cmd)
         self.last_cmd = cmd
         self.result.commands += 1
         assert self.result.latencies is not None
@@ -116,12 +123,13 @@ class DriveNode:
         self.pub.publish(twist)
 
     def stop(self, why: str) -> None:
-        """Zero velocity, and the reason."""
-        self.publish(0.0, 0.0)
+        """Zero velocity, and the reason; no command is published after it."""
+        with self.pub_lock:
+            if not self.done.is_set():
+                self.result.stopped = why
+                self.done.set()
+            self.publish(0.0, 0.0)
         self.last_cmd = (0.0, 0.0)
-        if not self.done.is_set():
-            self.result.stopped = why
-            self.done.set()
 
     def spin(self, max_seconds: float | None = None) -> DriveResult:
         """Drive until finished, stale input, a failure, Ctrl-C or ``max_seconds``."""
@@ -134,19 +142,22 @@ class DriveNode:
                 return self.result
             time.sleep(0.02)
         self.ready.set()
-        with self.lock:
-            self.last_msg = time.monotonic()
+        now = time.monotonic()
+        self.last_seen = {"scan": now, "odometry": now}
         try:
             while not self.done.is_set() and not rospy.is_shutdown():
                 if max_seconds is not None and time.monotonic() - start > max_seconds:
                     self.stop("time is up")
                     break
-                with self.lock:
-                    stale = time.monotonic() - self.last_msg > self.timeout
-                    latest = (self.scan, self.odom)
-                if stale:
-                    self.stop(f"no scan or odometry for {self.timeout:g} s: stopped the robot")
+                silent = [
+                    k for k, t in self.last_seen.items() if time.monotonic() - t > self.timeout
+                ]
+                if silent:
+                    what = " and ".join(silent)
+                    self.stop(f"no {what} for {self.timeout:g} s: stopped the robot")
                     break
+                with self.lock:
+                    latest = (self.scan, self.odom)
                 if not self.lock_step and latest[0] is not None and latest[1] is not None:
                     self._act(latest[0][1], latest[1][1])
                 if self.result.finished:
@@ -157,5 +168,5 @@ class DriveNode:
             self.stop("interrupted: stopped the robot")
             raise
         finally:
-            self.publish(0.0, 0.0)
+            self.stop(self.result.stopped if self.done.is_set() else "stopped")
         return self.result

@@ -118,11 +118,10 @@ class SimBridge:
         result = SimResult("lock-step" if self.lock_step else "real-time")
         self.env.reset(seed=self.seed)
         result.positions.append(tuple(self.unwrapped.position))
-        rate = self.ros["rospy"].Rate(1.0 / DT)
         if not self._connected():
             result.ended = f"no driver connected within {self.timeout:g} s"
             return result
-        start = time.monotonic()
+        start = next_tick = time.monotonic()
         self.publish(0)
         while max_steps is None or result.steps < max_steps:
             if self.lock_step:
@@ -130,8 +129,9 @@ class SimBridge:
                 if cmd is None:
                     result.ended = "no command within the timeout"
                     break
-            else:
-                rate.sleep()
+            else:  # paced by the wall clock: rospy's Rate would follow /clock under use_sim_time
+                next_tick += DT
+                time.sleep(max(0.0, next_tick - time.monotonic()))
                 cmd = self.cmd or (0.0, 0.0)
             self.unwrapped.set_velocity(*cmd)
             _, _, terminated, truncated, info = self.unwrapped.step(None)
