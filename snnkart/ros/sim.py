@@ -130,7 +130,9 @@ class SimBridge:
                     result.ended = "no command within the timeout"
                     break
             else:  # paced by the wall clock: rospy's Rate would follow /clock under use_sim_time
-                next_tick += DT
+                # a step late (the CPU was busy) is not made up in a burst of steps the
+                # driver could not answer: the simulation runs slower than real time instead
+                next_tick = max(next_tick + DT, time.monotonic() - DT)
                 time.sleep(max(0.0, next_tick - time.monotonic()))
                 cmd = self.cmd or (0.0, 0.0)
             self.unwrapped.set_velocity(*cmd)
