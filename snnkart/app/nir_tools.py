@@ -20,25 +20,12 @@ from snnkart.backends.graph_info import GraphInfo, describe_graph
 from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
 from snnkart.backends.open_loop import OpenLoopResult, check_inputs, compare, run_open_loop
 from snnkart.backends.quantize import quantize
+from snnkart.backends.reference import read_graph
 from snnkart.contract.manifest import Manifest, manifest_path
 from snnkart.errors import DeployError, NIRFileError, ParityError
 from snnkart.io import write_bytes
 
 DT_HINT = "snntorch exports use 1e-4 s, lava-dl 1; use the dt the graph was trained with"
-
-
-def read_graph(path: Path) -> Any:
-    import nir
-
-    path = Path(path)
-    if not path.is_file():
-        raise NIRFileError(f"no NIR file at {path}")
-    try:
-        return nir.read(path)
-    except Exception as exc:  # h5py raises several types for truncated or foreign files
-        raise NIRFileError(
-            f"{path}: not a readable NIR file ({type(exc).__name__}: {exc})"
-        ) from exc
 
 
 def resolve_dt(path: Path, dt: float | None) -> tuple[float | None, str]:

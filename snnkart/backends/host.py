@@ -28,18 +28,29 @@ def first_current(
     """The first layer's input current ``W1 x + b1`` for ``x`` ``[n_in]`` or ``[N, n_in]`` in
     ``arithmetic``: float32 in torch's order, float64 (Lava float) or the quantised integer
     current (Lava fixed point)."""
-    first = chain.layers[0]
-    if arithmetic == "float32":
-        w, b = first.weight, first.bias
-        return x @ w.T + b if x.ndim == 2 else w @ x + b
-    x64 = x.astype(np.float64)
-    w64, b64 = first.weight.astype(np.float64), first.bias.astype(np.float64)
-    current = x64 @ w64.T + b64 if x.ndim == 2 else w64 @ x64 + b64
-    if arithmetic == "fixed":
-        if fixed is None:
-            raise ValueError("fixed arithmetic needs the quantised network")
-        current = fixed.host_current(current)
-    return current
+    return _FirstLayer(chain).current(x, arithmetic, fixed)
+
+
+class _FirstLayer:
+    """The first synapse's weights in float32 and float64, converted once."""
+
+    def __init__(self, chain: ChainNetwork) -> None:
+        first = chain.layers[0]
+        self.w32, self.b32 = first.weight, first.bias
+        self.w64, self.b64 = first.weight.astype(np.float64), first.bias.astype(np.float64)
+
+    def current(
+        self, x: np.ndarray, arithmetic: str, fixed: FixedPointNetwork | None
+    ) -> np.ndarray:
+        if arithmetic == "float32":
+            return x @ self.w32.T + self.b32 if x.ndim == 2 else self.w32 @ x + self.b32
+        x64 = x.astype(np.float64)
+        current = x64 @ self.w64.T + self.b64 if x.ndim == 2 else self.w64 @ x64 + self.b64
+        if arithmetic == "fixed":
+            if fixed is None:
+                raise ValueError("fixed arithmetic needs the quantised network")
+            current = fixed.host_current(current)
+        return current
 
 
 class HostCodec:
@@ -66,6 +77,7 @@ class HostCodec:
         self.std = np.asarray(manifest.obs_std)
         self.low = np.asarray(manifest.obs_low)
         self.high = np.asarray(manifest.obs_high)
+        self.first = _FirstLayer(chain)
         self.readout_w = chain.readout_weight
         self.readout_b = chain.readout_bias
         self.rng = encoding.rate_generator(seed)
@@ -92,7 +104,7 @@ class HostCodec:
 
     def encode(self, obs: np.ndarray) -> np.ndarray:
         """The first layer's input current for the T SNN steps, ``[T, n1]``, in this arithmetic."""
-        current = first_current(self.chain, self._input(obs), self.arithmetic, self.fixed)
+        current = self.first.current(self._input(obs), self.arithmetic, self.fixed)
         if current.ndim == 1:
             current = np.broadcast_to(current, (self.T, current.shape[0]))
         return np.ascontiguousarray(current)

@@ -175,19 +175,7 @@ def _neuron(
         gain = dt * r
         leak = np.zeros(n)
     params.update(beta=beta, gain=gain, leak=leak, threshold=thr, v_reset=reset)
-    for key, value in params.items():
-        if value.shape == (1,):
-            params[key] = np.full(n, value[0])
-        elif value.shape != (n,):
-            raise UnsupportedGraphError(
-                f"node {name!r}: {key} has shape {value.shape}, expected ({n},) to match the "
-                "synapse before it"
-            )
-    # snntorch writes r = tau/dt (and w_in = tau_syn/dt), so the gains are 1 up to float32
-    # rounding of the time constants: snap them.
-    for key in ("gain", "syn_gain"):
-        if key in params:
-            params[key] = np.where(np.abs(params[key] - 1.0) < 1e-6, 1.0, params[key])
+    params = _per_neuron(name, params, n, "synapse")
     params["leak"] = np.where(np.abs(params["leak"]) < 1e-12, 0.0, params["leak"])
     for key in ("beta", "alpha"):
         if key in params and (np.any(params[key] < 0) or np.any(params[key] > 1)):
@@ -258,16 +246,28 @@ def _leaky_readout(name: str, node: Any, n: int, dt: float, discretisation: str)
             dt, tau, decay, _array(node, name, "v_leak").reshape(-1), discretisation
         ),
     }
+    return LeakyReadout(name, **_per_neuron(name, params, n, "readout synapse"))
+
+
+def _per_neuron(
+    name: str, params: dict[str, np.ndarray], n: int, before: str
+) -> dict[str, np.ndarray]:
+    """``params`` as ``(n,)`` vectors (a single value broadcast), or an error naming the one
+    that does not fit the ``before`` node. snntorch writes r = tau/dt (and w_in = tau_syn/dt),
+    so the input gains are 1 up to float32 rounding of the time constants: they are snapped."""
+    out = {}
     for key, value in params.items():
         if value.shape == (1,):
-            params[key] = np.full(n, value[0])
+            value = np.full(n, value[0])
         elif value.shape != (n,):
             raise UnsupportedGraphError(
                 f"node {name!r}: {key} has shape {value.shape}, expected ({n},) to match the "
-                "readout synapse before it"
+                f"{before} before it"
             )
-    params["gain"] = np.where(np.abs(params["gain"] - 1.0) < 1e-6, 1.0, params["gain"])
-    return LeakyReadout(name, **params)
+        if key in ("gain", "syn_gain"):
+            value = np.where(np.abs(value - 1.0) < 1e-6, 1.0, value)
+        out[key] = value
+    return out
 
 
 def _chain_order(graph: Any) -> list[str]:

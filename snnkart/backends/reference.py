@@ -266,21 +266,30 @@ def ChainSimulator(
     return LavaFixedChain(chain, num_steps, fixed)
 
 
-def load_nir(path: str | Path) -> tuple[Any, Manifest]:
-    """Read a NIR graph and its manifest, with clear errors for missing or broken files."""
+def read_graph(path: str | Path, missing: str = "") -> Any:
+    """A NIR graph, or a clear error for a missing or unreadable file (``missing``: what to
+    do about a missing one)."""
     import nir
 
     path = Path(path)
     if not path.is_file():
-        raise NIRFileError(f"no NIR file at {path}; create one with `snnkart export --nir RUN`")
-    manifest = Manifest.read(manifest_path(path))
+        raise NIRFileError(f"no NIR file at {path}{missing}")
     try:
-        graph = nir.read(path)
+        return nir.read(path)
     except Exception as exc:  # h5py raises several types for truncated or foreign files
         raise NIRFileError(
             f"{path}: not a readable NIR file ({type(exc).__name__}: {exc})"
         ) from exc
-    return graph, manifest
+
+
+def load_nir(path: str | Path) -> tuple[Any, Manifest]:
+    """Read a NIR graph and its manifest, with clear errors for missing or broken files."""
+    path = Path(path)
+    missing = "; create one with `snnkart export --nir RUN`"
+    if not path.is_file():
+        raise NIRFileError(f"no NIR file at {path}{missing}")
+    manifest = Manifest.read(manifest_path(path))
+    return read_graph(path, missing), manifest
 
 
 def load_chain(path: str | Path) -> tuple[ChainNetwork, Manifest]:
@@ -401,5 +410,6 @@ __all__ = [
     "WindowResult",
     "load_chain",
     "load_nir",
+    "read_graph",
     "split_window",
 ]
