@@ -142,7 +142,7 @@ class DriveNode:
                 return self.result
             time.sleep(0.02)
         self.ready.set()
-        now = time.monotonic()
+        now = next_tick = time.monotonic()
         self.last_seen = {"scan": now, "odometry": now}
         try:
             while not self.done.is_set() and not rospy.is_shutdown():
@@ -163,7 +163,13 @@ class DriveNode:
                 if self.result.finished:
                     self.stop("finished the lap")
                     break
-                time.sleep(period if not self.lock_step else 0.01)
+                if self.lock_step:
+                    time.sleep(0.01)
+                    continue
+                # ticks on a fixed grid: the action model integrates once per env step, so
+                # the rate must not sag by the time acting takes; a tick missed is dropped
+                next_tick = max(next_tick + period, time.monotonic())
+                time.sleep(max(0.0, next_tick - time.monotonic()))
         except KeyboardInterrupt:
             self.stop("interrupted: stopped the robot")
             raise
