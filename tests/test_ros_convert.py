@@ -13,6 +13,7 @@ from snnkart.envs.constants import PIXELS_PER_METRE
 from snnkart.ros.convert import (
     ObservationBuilder,
     Odom,
+    OdomFrame,
     Scan,
     VelocityCommands,
     env_from_odom,
@@ -42,17 +43,31 @@ def _driver(obs: np.ndarray, rng: np.random.Generator) -> int:
     return 1
 
 
-@pytest.mark.parametrize("track", ["small_S", "big_S"])
-def test_the_node_builds_the_env_observation_from_the_simulators_messages(track: str) -> None:
+@pytest.mark.parametrize("track,origin", [("small_S", "track"), ("big_S", "track"),
+                                          ("small_S", "elsewhere"), ("big_S", "elsewhere")])  # fmt: skip
+def test_the_node_builds_the_env_observation_from_the_simulators_messages(
+    track: str, origin: str
+) -> None:
+    """origin "track": the track is given in the odometry frame (bit for bit); "elsewhere": the
+    odometry frame's origin lies half a metre from the start, turned by 0.7 rad (to rounding;
+    at the start itself the spawns face east, where a wrong rotation would not show)."""
     env, shadow = make("gazebo", track=track), make("gazebo", track=track)
-    builder, commands = ObservationBuilder(shadow), VelocityCommands(shadow)
     rng = np.random.default_rng(0)
     try:
         obs, _ = env.reset(seed=1)
+        u = env.unwrapped
+        x0, y0 = u.position
+        moved = OdomFrame.at_pose(x0 + 30.0, y0 - 40.0, u.heading + 0.7)
+        frame = moved if origin == "elsewhere" else OdomFrame()
+        builder, commands = ObservationBuilder(shadow, frame), VelocityCommands(shadow)
         steps = passed = 0
         while steps < 600:
             scan, odom = _messages(env)
-            np.testing.assert_array_equal(builder.observe(scan, odom), obs, err_msg=str(steps))
+            built = builder.observe(scan, frame.from_track(odom))
+            if origin == "track":
+                np.testing.assert_array_equal(built, obs, err_msg=str(steps))
+            else:
+                np.testing.assert_allclose(built, obs, rtol=0, atol=1e-9, err_msg=str(steps))
             assert builder.next_cp == env.unwrapped.next_checkpoint, steps
             action = _driver(obs, rng)
             lin, ang = commands(action)
@@ -75,6 +90,21 @@ def test_frames_round_trip_and_follow_rep_103() -> None:
     assert (odom.x, odom.y, odom.yaw, odom.v, odom.w) == (2.5, -1.0, -math.pi / 2, 1.5, -0.5)
     assert env_from_odom(odom) == (250.0, 100.0, math.pi / 2, 150.0, 0.5)
     assert yaw_from_quaternion(math.sin(0.3), math.cos(0.3)) == pytest.approx(0.6)
+
+
+def test_an_odometry_frame_maps_poses_both_ways() -> None:
+    """A robot switched on at the spawn reads (0, 0, 0) there, and 1 m ahead and 0.5 m to its
+    left (REP 103: y to the left) reads (1, 0.5); the frame maps each back to the track."""
+    frame = OdomFrame.at_pose(180.0, 450.0, math.pi / 2)  # facing down the screen: yaw -pi/2
+    at = odom_from_env(180.0, 450.0, math.pi / 2, 0.0, 0.0)
+    ahead = odom_from_env(230.0, 550.0, math.pi / 2, 1.0, 0.2)  # 1 m ahead, 0.5 m to its left
+    start, moved = frame.from_track(at), frame.from_track(ahead)
+    assert (start.x, start.y, start.yaw) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
+    assert (moved.x, moved.y, moved.yaw) == pytest.approx((1.0, 0.5, 0.0), abs=1e-12)
+    assert (moved.v, moved.w) == (ahead.v, ahead.w)  # the robot's own frame
+    back = frame.to_track(moved)
+    assert (back.x, back.y, back.yaw) == pytest.approx((ahead.x, ahead.y, ahead.yaw), abs=1e-12)
+    assert OdomFrame().to_track(ahead) == ahead
 
 
 def test_a_scan_is_resampled_to_the_env_rays() -> None:

@@ -9,19 +9,27 @@ from typing import Any
 from snnkart.errors import DeployError
 from snnkart.io import write_json
 
+ODOM_ORIGINS = ("track", "spawn")
+
+
+def _check_origin(odom_origin: str) -> None:
+    if odom_origin not in ODOM_ORIGINS:
+        raise DeployError(f"--odom-origin must be track or spawn, not {odom_origin!r}")
+
 
 def run_sim(
     track: str, seed: int, lock_step: bool, out: Path | None, timeout: float,
-    max_steps: int | None,
+    max_steps: int | None, odom_origin: str = "track",
 ) -> dict[str, Any]:  # fmt: skip
     from snnkart.envs import make
     from snnkart.ros.rospy_import import init_node
     from snnkart.ros.sim import SimBridge
 
+    _check_origin(odom_origin)
     init_node("snnkart_sim")
     env = make("gazebo", track=track)
     try:
-        result = SimBridge(env, seed, lock_step, timeout).run(max_steps)
+        result = SimBridge(env, seed, lock_step, timeout, odom_origin).run(max_steps)
     finally:
         env.close()
     record = dataclasses.asdict(result)
@@ -59,15 +67,21 @@ def _policy(policy: Path, backend: str, precision: str) -> tuple[Any, Any]:
 def run_drive(
     policy: Path, backend: str, precision: str, lock_step: bool, timeout: float,
     max_seconds: float | None, max_linear: float | None = None, max_angular: float | None = None,
+    odom_origin: str = "track",
 ) -> dict[str, Any]:  # fmt: skip
+    from snnkart.ros.convert import OdomFrame
     from snnkart.ros.node import DriveNode
     from snnkart.ros.rospy_import import check_master, init_node
 
+    _check_origin(odom_origin)
     check_master()  # before loading anything heavy
     predictor, env = _policy(policy, backend, precision)
     try:
+        frame = OdomFrame.at_spawn(env.unwrapped.track) if odom_origin == "spawn" else None
         init_node("snnkart_drive")
-        node = DriveNode(env, predictor, lock_step, timeout, limits=(max_linear, max_angular))
+        node = DriveNode(
+            env, predictor, lock_step, timeout, limits=(max_linear, max_angular), frame=frame
+        )
         result = node.spin(max_seconds)
     finally:
         env.close()

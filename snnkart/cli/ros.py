@@ -14,6 +14,13 @@ ros_app = typer.Typer(
     help="Drive a differential-drive robot over ROS (ROS_MASTER_URI) with a deployed policy.",
     no_args_is_help=True,
 )
+OriginOpt = Annotated[
+    str,
+    typer.Option(
+        help="track: odometry is in the track's frame; spawn: odometry counts from the track's "
+        "spawn, as a real robot's wheel odometry counts from where it was switched on",
+    ),
+]
 LockOpt = Annotated[
     bool,
     typer.Option(
@@ -31,12 +38,14 @@ def sim(
     timeout: Annotated[float, typer.Option(help="lock-step: seconds to wait for a command")] = 30,
     max_steps: Annotated[int | None, typer.Option(help="end after this many steps")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="episode record (JSON)")] = None,
+    odom_origin: OriginOpt = "track",
 ) -> None:
     """Play Gazebo's part: the gazebo env publishes /scan, /odom and /clock and applies /cmd_vel."""
     from snnkart.app.ros_bridge import run_sim
 
     record = guard(
-        lambda: run_sim(track, seed, lock_step, out, timeout, max_steps), "the simulation stopped"
+        lambda: run_sim(track, seed, lock_step, out, timeout, max_steps, odom_origin),
+        "the simulation stopped",
     )
     summary = {k: v for k, v in record.items() if k != "positions"}
     typer.echo(json.dumps(summary))
@@ -58,6 +67,7 @@ def drive(
     max_angular: Annotated[
         float | None, typer.Option(help="the robot's turn-rate limit, rad/s (default: the env's)")
     ] = None,
+    odom_origin: OriginOpt = "track",
 ) -> None:
     """Subscribe to /scan and /odom, run the policy, publish /cmd_vel within the robot's limits;
     a zero Twist on stale input, a failed backend, Ctrl-C and exit."""
@@ -65,7 +75,15 @@ def drive(
 
     summary = guard(
         lambda: run_drive(
-            policy, backend, precision, lock_step, timeout, max_seconds, max_linear, max_angular
+            policy,
+            backend,
+            precision,
+            lock_step,
+            timeout,
+            max_seconds,
+            max_linear,
+            max_angular,
+            odom_origin,
         ),
         "the robot was stopped (zero cmd_vel)",
     )

@@ -1,8 +1,10 @@
 """Messages <-> the gazebo env's observation and actions, independent of the ROS version.
 
-Frames. The track is given in the odometry frame: a track point ``(x_px, y_px)`` (y down, 100
-px per metre) is the odometry point ``(x_px / 100, -y_px / 100)`` m, and a heading ``h``
-(clockwise on screen) is the yaw ``-h`` (counter-clockwise, ROS's REP 103). Odometry's
+Frames. A track point ``(x_px, y_px)`` (y down, 100 px per metre) is the point
+``(x_px / 100, -y_px / 100)`` m, and a heading ``h`` (clockwise on screen) the yaw ``-h``
+(counter-clockwise, ROS's REP 103). By default the track is given in the odometry frame; with
+an :class:`OdomFrame` (``--odom-origin spawn``) odometry counts from the track's spawn, as a
+real robot's wheel odometry counts from where it was switched on. Odometry's
 ``twist.linear.x`` is the forward speed, ``twist.angular.z`` the counter-clockwise turn rate.
 
 LIDAR. A ``LaserScan`` has beams at ``angle_min + j * angle_increment`` (counter-clockwise,
@@ -55,6 +57,38 @@ class Scan:
     range_max: float
 
 
+@dataclass(frozen=True)
+class OdomFrame:
+    """Where the odometry frame's origin lies in the track's frame (m, m, rad; REP 103).
+
+    The identity (the default) is the track given in the odometry frame. A real robot's wheel
+    odometry starts at zero where it was switched on: placed at the track's spawn, its frame is
+    :meth:`at_spawn`. Velocities are in the robot's own frame and need no transform."""
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+
+    @classmethod
+    def at_pose(cls, x_px: float, y_px: float, heading: float) -> OdomFrame:
+        pose = odom_from_env(x_px, y_px, heading, 0.0, 0.0)
+        return cls(pose.x, pose.y, pose.yaw)
+
+    @classmethod
+    def at_spawn(cls, track: Any) -> OdomFrame:
+        return cls.at_pose(*track.spawn_position, track.spawn_heading)
+
+    def to_track(self, odom: Odom) -> Odom:
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        x, y = self.x + c * odom.x - s * odom.y, self.y + s * odom.x + c * odom.y
+        return Odom(x, y, odom.yaw + self.yaw, odom.v, odom.w)
+
+    def from_track(self, odom: Odom) -> Odom:
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        dx, dy = odom.x - self.x, odom.y - self.y
+        return Odom(c * dx + s * dy, -s * dx + c * dy, odom.yaw - self.yaw, odom.v, odom.w)
+
+
 def odom_from_env(x_px: float, y_px: float, heading: float, v_px: float, w_cw: float) -> Odom:
     """The odometry of a robot at an env pose and velocity (the simulator side)."""
     return Odom(x_px / PPM, -y_px / PPM, -heading, v_px / PPM, -w_cw)
@@ -92,7 +126,7 @@ class ObservationBuilder:
     """The gazebo env's observation from odometry and a scan, with the checkpoints counted in
     order as the env counts them (the robot's circle touching the next line)."""
 
-    def __init__(self, env: Any) -> None:
+    def __init__(self, env: Any, frame: OdomFrame | None = None) -> None:
         unwrapped = getattr(env, "unwrapped", env)
         if not isinstance(unwrapped, GazeboEnv):
             raise ValueError(
@@ -103,13 +137,14 @@ class ObservationBuilder:
         self.range_m = range_px / PPM
         self.lines = [(c.a, c.b) for c in unwrapped.track.checkpoints]
         self.next_cp = 0
+        self.frame = frame or OdomFrame()
 
     @property
     def finished(self) -> bool:
         return self.next_cp >= len(self.lines)
 
     def observe(self, scan: Scan, odom: Odom) -> np.ndarray:
-        x, y, heading, v, w = env_from_odom(odom)
+        x, y, heading, v, w = env_from_odom(self.frame.to_track(odom))
         while not self.finished and self._touches(x, y, self.next_cp):
             self.next_cp += 1
         lidar = rays_from_scan(scan, self.offsets, self.range_m)

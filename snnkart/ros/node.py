@@ -27,6 +27,7 @@ from snnkart.envs.constants import DT
 from snnkart.ros.convert import (
     ObservationBuilder,
     Odom,
+    OdomFrame,
     Scan,
     VelocityCommands,
     yaw_from_quaternion,
@@ -46,9 +47,10 @@ class DriveNode:
     def __init__(
         self, env: Any, predictor: Any, lock_step: bool, timeout: float = 2.0,
         rate: float = 1 / DT, limits: tuple[float | None, float | None] = (None, None),
+        frame: OdomFrame | None = None,
     ) -> None:  # fmt: skip
         self.ros = import_ros()
-        self.builder = ObservationBuilder(env)
+        self.builder = ObservationBuilder(env, frame)
         self.commands = VelocityCommands(env, *limits)
         self.predictor = predictor
         self.lock_step, self.timeout, self.rate = lock_step, timeout, rate

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from snnkart.envs.constants import DT, PIXELS_PER_METRE
-from snnkart.ros.convert import odom_from_env, scan_from_rays
+from snnkart.ros.convert import OdomFrame, odom_from_env, scan_from_rays
 from snnkart.ros.rospy_import import import_ros
 
 RESEND = 0.2
@@ -45,13 +45,18 @@ class SimResult:
 class SimBridge:
     """The env behind the topics; ``run()`` drives one episode."""
 
-    def __init__(self, env: Any, seed: int, lock_step: bool, timeout: float = 30.0) -> None:
+    def __init__(
+        self, env: Any, seed: int, lock_step: bool, timeout: float = 30.0,
+        odom_origin: str = "track",
+    ) -> None:  # fmt: skip
         self.ros = import_ros()
         self.env = env
         self.unwrapped = env.unwrapped
         self.seed = seed
         self.lock_step = lock_step
         self.timeout = timeout
+        self.odom_origin = odom_origin  # "track", or "spawn": where the episode started
+        self.frame = OdomFrame()
         self.cmd: tuple[float, float] | None = None
         self.cmd_event = threading.Event()
         rospy = self.ros["rospy"]
@@ -83,7 +88,7 @@ class SimBridge:
         msg.ranges = [float(r) for r in scan.ranges]
         self.scan_pub.publish(msg)
         (x, y), (v, w) = u.position, u.velocity
-        odom = odom_from_env(x, y, u.heading, v, w)
+        odom = self.frame.from_track(odom_from_env(x, y, u.heading, v, w))
         o = self.ros["nav_msgs.msg"].Odometry()
         o.header.stamp, o.header.frame_id, o.child_frame_id = stamp, "odom", "base_footprint"
         o.pose.pose.position.x, o.pose.pose.position.y = odom.x, odom.y
@@ -118,6 +123,8 @@ class SimBridge:
         result = SimResult("lock-step" if self.lock_step else "real-time")
         self.env.reset(seed=self.seed)
         result.positions.append(tuple(self.unwrapped.position))
+        if self.odom_origin == "spawn":  # wheel odometry counts from where the robot started
+            self.frame = OdomFrame.at_pose(*self.unwrapped.position, self.unwrapped.heading)
         if not self._connected():
             result.ended = f"no driver connected within {self.timeout:g} s"
             return result
