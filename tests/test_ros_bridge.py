@@ -35,16 +35,19 @@ def _direct(predictor, env) -> tuple[list[tuple[float, float]], dict]:
     return positions, result[0].__dict__
 
 
-def _bridge(tmp_path: Path, policy: Path, backend: str, lock_step: bool) -> dict:
+def _bridge(
+    tmp_path: Path, policy: Path, backend: str, lock_step: bool, origin: str = "track"
+) -> dict:
     mode = "--lock-step" if lock_step else "--real-time"
     out = tmp_path / f"sim-{backend}-{mode[2:]}.json"
     with rosmaster() as uri:
         env = ros_env(uri)
         sim = subprocess.Popen([SNNKART, "ros", "sim", mode, "--seed", str(SEED), "--out",
-                                str(out), "--timeout", "60"], env=env, text=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+                                str(out), "--timeout", "60", "--odom-origin", origin], env=env,
+                               text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
         drive = subprocess.Popen([SNNKART, "ros", "drive", str(policy), "--backend", backend,
-                                  mode, "--max-seconds", "150", "--timeout", "10"], env=env,
+                                  mode, "--max-seconds", "150", "--timeout", "10",
+                                  "--odom-origin", origin], env=env,
                                  text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
         try:
             _, sim_err = sim.communicate(timeout=200)
@@ -104,6 +107,28 @@ def test_real_time_still_finishes(tmp_path: Path) -> None:
     assert record["drive"]["commands"] >= 0.9 * record["steps"], record["drive"]
     print(f"real-time lap time {record['lap_time']:.2f} s ({record['steps']} steps, "
           f"{record['wall_seconds']:.1f} s wall-clock)")  # fmt: skip
+
+
+@pytest.mark.timeout(300)
+def test_odometry_from_where_the_robot_started_still_finishes(tmp_path: Path) -> None:
+    """As on a real robot: the simulator's odometry counts from the episode's start (the spawn
+    with this seed's jitter), and the driver takes the track's spawn as its origin, so it
+    believes itself a few centimetres from where it is; it still finishes the lap."""
+    from snnkart.envs import make
+
+    env = make("gazebo", track="small_S")
+    try:
+        env.reset(seed=SEED)
+        u = env.unwrapped
+        offset = np.subtract(u.position, u.track.spawn_position)
+    finally:
+        env.close()
+    assert np.abs(offset).max() > 1.0  # the belief is off (px)
+    record = _bridge(tmp_path, POLICY, "torch", lock_step=True, origin="spawn")
+    assert record["finished"], record["ended"]
+    assert record["drive"]["finished"], record["drive"]  # its own count of checkpoints agrees
+    print(f"odometry from the start, {np.hypot(*offset):.1f} px off the spawn: lap "
+          f"{record['lap_time']:.2f} s ({record['steps']} steps)")  # fmt: skip
 
 
 @pytest.mark.timeout(60)
