@@ -76,7 +76,8 @@ class OdomFrame:
 
     @classmethod
     def at_spawn(cls, track: Any) -> OdomFrame:
-        return cls.at_pose(*track.spawn_position, track.spawn_heading)
+        x, y = track.spawn_position
+        return cls.at_pose(x, y, track.spawn_heading)
 
     def to_track(self, odom: Odom) -> Odom:
         c, s = math.cos(self.yaw), math.sin(self.yaw)

@@ -124,7 +124,8 @@ class SimBridge:
         self.env.reset(seed=self.seed)
         result.positions.append(tuple(self.unwrapped.position))
         if self.odom_origin == "spawn":  # wheel odometry counts from where the robot started
-            self.frame = OdomFrame.at_pose(*self.unwrapped.position, self.unwrapped.heading)
+            x, y = self.unwrapped.position
+            self.frame = OdomFrame.at_pose(x, y, self.unwrapped.heading)
         if not self._connected():
             result.ended = f"no driver connected within {self.timeout:g} s"
             return result
