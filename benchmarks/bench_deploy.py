@@ -73,7 +73,7 @@ def main() -> None:
             run_dir = Path(tmp) / "run"
             cfg = load_config(
                 overrides={"env": "steer", "policy": "snn", "total_steps": 2048},
-                sets=["ppo.num_envs=2", "ppo.num_steps=512", "run.tensorboard=false"],
+                sets=["ppo.num_envs=2", "ppo.rollout_steps=512", "run.tensorboard=false"],
             )
             trainer = Trainer(cfg, run_dir)
             try:

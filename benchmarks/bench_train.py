@@ -41,7 +41,7 @@ ENV, TRACK, SEED = "steer", "small_S", 1
 def settings(num_steps: int) -> list[str]:
     return [
         "ppo.num_envs=8",
-        f"ppo.num_steps={num_steps}",
+        f"ppo.rollout_steps={num_steps}",
         "ppo.update_epochs=10",
         "ppo.num_minibatches=8",
         "ppo.learning_rate=3e-4",
@@ -66,8 +66,8 @@ def shared_hyperparameters(cfg: TrainConfig) -> dict[str, Any]:
     p = cfg.ppo
     return {
         "n_envs": p.num_envs,
-        "n_steps": p.num_steps,
-        "minibatch_size": p.num_envs * p.num_steps // p.num_minibatches,
+        "n_steps": p.rollout_steps,
+        "minibatch_size": p.num_envs * p.rollout_steps // p.num_minibatches,
         "n_epochs": p.update_epochs,
         "gamma": p.gamma,
         "gae_lambda": p.gae_lambda,
@@ -184,7 +184,7 @@ def sb3_run(cfg: TrainConfig, iterations: int) -> dict[str, Any]:
             self.ent.append(self.model.ent_coef)
 
         def _on_rollout_start(self) -> None:
-            iteration = self.model.num_timesteps // (p.num_envs * p.num_steps) + 1
+            iteration = self.model.num_timesteps // (p.num_envs * p.rollout_steps) + 1
             if iteration > 1:
                 self.record()
             self.model.ent_coef = (frac(iteration) if p.anneal_ent else 1.0) * p.ent_coef
@@ -203,7 +203,7 @@ def sb3_run(cfg: TrainConfig, iterations: int) -> dict[str, Any]:
         norm_obs=p.norm_obs, norm_reward=False, clip_obs=p.clip_obs,
     )  # fmt: skip
     model = PPO(
-        "MlpPolicy", venv, n_steps=p.num_steps, batch_size=cfg.batch_size // p.num_minibatches,
+        "MlpPolicy", venv, n_steps=p.rollout_steps, batch_size=cfg.batch_size // p.num_minibatches,
         n_epochs=p.update_epochs, learning_rate=learning_rate, gamma=p.gamma,
         gae_lambda=p.gae_lambda, clip_range=p.clip_coef, ent_coef=p.ent_coef,
         vf_coef=p.vf_coef, max_grad_norm=p.max_grad_norm, normalize_advantage=p.norm_adv,

@@ -118,11 +118,11 @@ def test_bench_learning_runs_trains_and_evaluates(tmp_path):
     run_benchmark(
         "bench_learning", "--envs", "grid", "--policies", "ann", "--seeds", "1",
         "--steps", "512", "--jobs", "1", "--eval-episodes", "2", "--runs", str(tmp_path / "runs"),
-        "--set", "ppo.num_envs=2", "--set", "ppo.num_steps=256", "--out", str(out), timeout=170,
+        "--set", "ppo.num_envs=2", "--set", "ppo.rollout_steps=256", "--out", str(out), timeout=170,
     )  # fmt: skip
     results = json.loads(out.read_text())
     check_machine(results)
-    assert results["settings"] == ["ppo.num_envs=2", "ppo.num_steps=256"]
+    assert results["settings"] == ["ppo.num_envs=2", "ppo.rollout_steps=256"]
     (run,) = results["runs"]
     assert (run["env"], run["policy"], run["seed"], run["steps"]) == ("grid", "ann", 1, 512)
     evaluation = json.loads((Path(run["run_dir"]) / "eval.json").read_text())

@@ -54,7 +54,7 @@ SLOWEST: dict[str, float] = {}
 
 TRAIN_ARGS = [
     "train", "--env", "grid", "--policy", "ann", "--track", "small_S",
-    "--set", "ppo.num_envs=2", "--set", "ppo.num_steps=64", "--set", "ppo.update_epochs=1",
+    "--set", "ppo.num_envs=2", "--set", "ppo.rollout_steps=64", "--set", "ppo.update_epochs=1",
     "--set", "ppo.num_minibatches=2", "--set", "run.tensorboard=false",
     "--set", "run.checkpoint_every=1",
 ]  # fmt: skip

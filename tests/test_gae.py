@@ -78,7 +78,7 @@ def test_compute_gae_float32_and_lambda_one_is_discounted_return() -> None:
 
 TINY = [
     "ppo.num_envs=2",
-    "ppo.num_steps=64",
+    "ppo.rollout_steps=64",
     "ppo.update_epochs=2",
     "ppo.num_minibatches=2",
     "run.tensorboard=false",

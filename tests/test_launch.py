@@ -18,7 +18,7 @@ from snnkart.app.reporter import Silent
 from snnkart.rl.config import load_config
 
 ROOT = Path(__file__).resolve().parents[1]
-TINY = ["ppo.num_envs=2", "ppo.num_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2",
+TINY = ["ppo.num_envs=2", "ppo.rollout_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2",
         "run.tensorboard=false"]  # fmt: skip
 BATCH = 2 * 64
 

@@ -23,7 +23,7 @@ from snnkart.errors import UsageError
 from snnkart.report.study import _band
 
 ROOT = Path(__file__).resolve().parents[1]
-TINY = ["ppo.num_envs=2", "ppo.num_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2",
+TINY = ["ppo.num_envs=2", "ppo.rollout_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2",
         "snn.num_steps=2"]  # fmt: skip
 BATCH = 128
 

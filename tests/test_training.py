@@ -49,7 +49,7 @@ SNNKART = Path(sys.executable).with_name("snnkart")
 
 TINY = [
     "ppo.num_envs=2",
-    "ppo.num_steps=64",
+    "ppo.rollout_steps=64",
     "ppo.update_epochs=2",
     "ppo.num_minibatches=2",
     "run.tensorboard=false",
@@ -776,14 +776,14 @@ def test_defaults_per_env_and_policy_yield_to_the_user(
     cfg = load_config(overrides={"env": env, "policy": policy})
     assert cfg.ppo.ent_coef == ent_coef
     assert cfg.ppo.learning_rate == learning_rate
-    assert (cfg.ppo.num_envs, cfg.ppo.num_steps) == rollout
+    assert (cfg.ppo.num_envs, cfg.ppo.rollout_steps) == rollout
     assert cfg.ann.hidden == ((64, 64) if policy == "ann" else (128, 128))
     mine = load_config(overrides={"env": env, "policy": policy}, sets=["ppo.ent_coef=0.005"])
     assert mine.ppo.ent_coef == 0.005
     assert mine.ppo.learning_rate == learning_rate
     assert mine.ppo.num_envs == cfg.ppo.num_envs
     theirs = load_config(overrides={"env": env, "policy": policy}, sets=["ppo.num_envs=4"])
-    assert (theirs.ppo.num_envs, theirs.ppo.num_steps) == (4, cfg.ppo.num_steps)
+    assert (theirs.ppo.num_envs, theirs.ppo.rollout_steps) == (4, cfg.ppo.rollout_steps)
 
 
 def test_firing_rate_penalty_warmup_ramps_the_penalty(tmp_path: Path) -> None:

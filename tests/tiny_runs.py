@@ -10,7 +10,7 @@ from snnkart.rl.ppo import Trainer
 
 TINY = [
     "ppo.num_envs=2",
-    "ppo.num_steps=128",
+    "ppo.rollout_steps=128",
     "ppo.update_epochs=1",
     "ppo.num_minibatches=2",
     "run.tensorboard=false",

@@ -7,6 +7,7 @@ The resolved config is written into every run directory (``config.toml``) and is
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -45,7 +46,12 @@ class PPOConfig(_Section):
     """PPO hyperparameters (CleanRL / Stable-Baselines3 names)."""
 
     num_envs: int = Field(8, ge=1, description="parallel envs (gymnasium SyncVectorEnv)")
-    num_steps: int = Field(256, ge=1, description="rollout steps per env per iteration")
+    rollout_steps: int = Field(
+        256,
+        ge=1,
+        description="rollout steps per env per iteration (was ppo.num_steps, a name it shared "
+        "with snn.num_steps, the SNN's T)",
+    )
     learning_rate: float = Field(3e-4, ge=0.0, description="0 trains nothing (a control)")
     anneal_lr: bool = True
     gamma: float = Field(0.995, gt=0.0, le=1.0, description="0.995: a ~3 s horizon at 60 Hz")
@@ -181,7 +187,7 @@ ENV_POLICY_DEFAULTS: dict[tuple[str, str], dict[str, dict[str, Any]]] = {
     # 256 steps; the same batch from 16 envs x 128 steps (more, shorter episodes' worth of
     # starts per update) met the targets in 5 of seeds 1-5, where 8 envs met them in 4 and
     # 32 x 64 failed seed 1 (benchmarks/results/bench_learning-*-gazebo-snn-envs.json).
-    ("gazebo", "snn"): {"ppo": {"ent_coef": 0.02, "num_envs": 16, "num_steps": 128}},
+    ("gazebo", "snn"): {"ppo": {"ent_coef": 0.02, "num_envs": 16, "rollout_steps": 128}},
     # The steer ANN stopped short of the first hairpin in 2 of 3 seeds at 0.01 and finished
     # it in both at 0.02 (benchmarks/results/bench_learning-54afbe7-steer-ann-ent0.02.json;
     # 3/3 in bench_learning-d87ccc1).
@@ -202,6 +208,33 @@ ENV_POLICY_DEFAULTS: dict[tuple[str, str], dict[str, dict[str, Any]]] = {
     ("grid", "ann"): {"ppo": {"ent_coef": 0.005, "start_spread": 0.5}},
     ("grid", "snn"): {"ppo": {"ent_coef": 0.0, "start_spread": 0.5}},
 }
+
+
+RENAMED_KEYS: dict[tuple[str, str], str] = {("ppo", "num_steps"): "rollout_steps"}
+"""Config keys that were renamed, ``(section, old) -> new``: the old name still loads (saved
+runs, old config files, ``--set``), with a warning where a user typed it."""
+
+
+def _renamed_keys(data: dict[str, Any], warn: bool) -> dict[str, Any]:
+    """``data`` with every renamed key under its new name; both names at once is an error."""
+    for (section, old), new in RENAMED_KEYS.items():
+        given = data.get(section)
+        if not isinstance(given, dict) or old not in given:
+            continue
+        if new in given:
+            raise ValueError(
+                f"{section}.{old} is the old name of {section}.{new}; give only {section}.{new}"
+            )
+        if warn:
+            warnings.warn(
+                f"{section}.{old} is deprecated: it is now {section}.{new} (the old name still "
+                "works for now)",
+                FutureWarning,
+                stacklevel=2,
+            )
+        given = {(new if k == old else k): v for k, v in given.items()}
+        data = {**data, section: given}
+    return data
 
 
 def _merge_defaults(data: dict[str, Any], defaults: dict[str, dict[str, Any]]) -> dict[str, Any]:
@@ -239,7 +272,11 @@ class TrainConfig(BaseModel):
         Not to a run's saved config: it is resolved already, and a key it lacks was added after
         it was saved, so the run trained with that key's plain default, not with a per-env one.
         """
-        if not isinstance(data, dict) or (info.context or {}).get("resolved"):
+        if not isinstance(data, dict):
+            return data
+        resolved = bool((info.context or {}).get("resolved"))
+        data = _renamed_keys(data, warn=not resolved)
+        if resolved:
             return data
         policy = str(data.get("policy", "snn"))
         try:
@@ -259,17 +296,17 @@ class TrainConfig(BaseModel):
     @model_validator(mode="after")
     def _check(self) -> TrainConfig:
         object.__setattr__(self, "env", resolve_env_name(self.env))
-        batch = self.ppo.num_envs * self.ppo.num_steps
+        batch = self.ppo.num_envs * self.ppo.rollout_steps
         if batch < self.ppo.num_minibatches:
             raise ValueError(
-                f"ppo.num_envs * ppo.num_steps = {batch} is smaller than "
+                f"ppo.num_envs * ppo.rollout_steps = {batch} is smaller than "
                 f"ppo.num_minibatches = {self.ppo.num_minibatches}"
             )
         return self
 
     @property
     def batch_size(self) -> int:
-        return self.ppo.num_envs * self.ppo.num_steps
+        return self.ppo.num_envs * self.ppo.rollout_steps
 
     def make_env(
         self, render_mode: str | None = None, track: str | Path | Track | None = None

@@ -198,7 +198,7 @@ class Trainer:
         p, snn = self.cfg.ppo, self.cfg.snn
         discrete = self.policy.discrete
         return RolloutBuffer.allocate(
-            p.num_steps, p.num_envs, self.spec["obs_dim"],
+            p.rollout_steps, p.num_envs, self.spec["obs_dim"],
             () if discrete else (self.policy.action_dim,), discrete, snn.num_steps,
             rate=self.cfg.policy == "snn" and snn.encoding == "rate",
         )  # fmt: skip

@@ -94,7 +94,7 @@ class Rollout:
         self.karts: list[KartEnv] = [e.unwrapped for e in self.envs.envs]  # type: ignore[misc]
         for kart in self.karts:
             kart.start_spread = cfg.ppo.start_spread
-        steps, envs = cfg.ppo.num_steps, cfg.ppo.num_envs
+        steps, envs = cfg.ppo.rollout_steps, cfg.ppo.num_envs
         self.positions = np.zeros((steps, envs, 2), dtype=np.float32)  # trajectories
         self.ends = np.zeros((steps, envs), dtype=bool)
 
@@ -116,7 +116,7 @@ class Rollout:
         p, E = self.ppo, self.ppo.num_envs
         self.positions[:] = 0.0
         self.ends[:] = False
-        for step in range(p.num_steps):
+        for step in range(p.rollout_steps):
             progress.global_step += E
             if p.norm_obs:
                 obs_rms.update(self.next_raw)
