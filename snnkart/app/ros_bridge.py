@@ -77,9 +77,9 @@ def _policy_env(policy: Path) -> tuple[Any, Any]:
         trained = resolve_track(manifest, None).track
         env = make_policy_env(manifest, None, trained)
     else:
-        from snnkart.rl.trained import load_run
+        from snnkart.rl.open_run import open_run
 
-        run = load_run(policy)
+        run = open_run(policy)
         trained = run.track
         env = run.config.make_env(track=trained)
     _check_gazebo(env)
