@@ -15,17 +15,14 @@ process boundary (cli -> app -> ...). It ends as the matching ``snnkart`` comman
 
 from __future__ import annotations
 
-import contextlib
 import json
 import signal
 import sys
-from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
 
 from snnkart import faults
-from snnkart.app.reporter import Task
+from snnkart.app.reporter import Silent
 from snnkart.errors import ParityError, SnnkartError, UsageError
 
 
@@ -72,30 +69,12 @@ def parse_request(text: str) -> WorkerRequest:
         raise UsageError(f"not a worker request ({exc}): {text[:200]}") from exc
 
 
-class LineReporter:
-    """A reporter for a worker whose output goes to a log: messages as lines on stderr, no
-    progress bars."""
+class LineReporter(Silent):
+    """The worker's reporter (its output goes to a log, not a terminal): messages as lines on
+    stderr, no progress bars."""
 
     def message(self, text: str) -> None:
         print(text, file=sys.stderr, flush=True)
-
-    @contextlib.contextmanager
-    def progress(
-        self, label: str, total: int | None = None, steps: str | None = None
-    ) -> Iterator[Task]:
-        yield _NoTask()
-
-    @contextlib.contextmanager
-    def training(self, total: int, completed: int) -> Iterator[Callable[[dict[str, Any]], None]]:
-        yield lambda record: None
-
-
-class _NoTask:
-    def advance(self) -> None:
-        pass
-
-    def step(self) -> None:
-        pass
 
 
 def run(request: WorkerRequest) -> int:
