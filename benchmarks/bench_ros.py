@@ -34,7 +34,8 @@ def bridge(policy: Path, backend: str, seed: int, work: Path, mode: str = "--loc
     out = work / f"sim-{backend}{mode}.json"
     with rosmaster() as uri:
         env = ros_env(uri)
-        sim = subprocess.Popen([SNNKART, "ros", "sim", mode, "--seed", str(seed),
+        sim = subprocess.Popen([SNNKART, "ros", "sim", "--policy", str(policy), mode,
+                                "--seed", str(seed),
                                 "--out", str(out)], env=env, text=True,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
         drive = subprocess.run([SNNKART, "ros", "drive", str(policy), "--backend", backend,

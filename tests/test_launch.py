@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from snnkart.app import pool as process_pool
 from snnkart.app.launch import LocalPool, RunSpec
 from snnkart.app.reporter import Silent
 from snnkart.rl.config import load_config
@@ -120,21 +121,23 @@ def test_ctrl_c_saves_the_running_runs_and_leaves_no_worker(tmp_path: Path, sign
 
 
 @pytest.mark.timeout(120)
-def test_a_pool_that_fails_stops_its_running_runs(tmp_path: Path) -> None:
+def test_a_pool_that_fails_stops_its_running_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Not only Ctrl-C: whatever else ends the pool (here the second run's directory cannot be
     made) stops the runs already started, which have sessions of their own."""
     long, second = _specs(100_000)
     (tmp_path / second.name).write_text("a file where the run directory should go")
     pool = LocalPool(tmp_path, jobs=2)
     started: list[subprocess.Popen[bytes]] = []
-    real_start = pool._start
+    real_popen = subprocess.Popen
 
-    def recording_start(spec: RunSpec) -> subprocess.Popen[bytes]:
-        proc = real_start(spec)
+    def recording_popen(*args: object, **kwargs: object) -> subprocess.Popen[bytes]:
+        proc: subprocess.Popen[bytes] = real_popen(*args, **kwargs)  # type: ignore[call-overload]
         started.append(proc)
         return proc
 
-    pool._start = recording_start  # type: ignore[method-assign]
+    monkeypatch.setattr(process_pool.subprocess, "Popen", recording_popen)
     try:
         with pytest.raises(FileExistsError):
             pool.run([long, second], Silent())

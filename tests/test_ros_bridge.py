@@ -42,7 +42,8 @@ def _bridge(
     out = tmp_path / f"sim-{backend}-{mode[2:]}.json"
     with rosmaster() as uri:
         env = ros_env(uri)
-        sim = subprocess.Popen([SNNKART, "ros", "sim", mode, "--seed", str(SEED), "--out",
+        sim = subprocess.Popen([SNNKART, "ros", "sim", "--policy", str(policy), mode,
+                                "--seed", str(SEED), "--out",
                                 str(out), "--timeout", "60", "--odom-origin", origin], env=env,
                                text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
         drive = subprocess.Popen([SNNKART, "ros", "drive", str(policy), "--backend", backend,

@@ -10,8 +10,8 @@ import torch
 from tiny_runs import TINY
 
 from snnkart.app.launch import RunSpec, complete
-from snnkart.rl.checkpoint import RunningMeanStd
 from snnkart.rl.config import load_config
+from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.ppo import Trainer
 
 FIXTURE = Path(__file__).resolve().parent / "data" / "policies" / "grid-snn"

@@ -253,8 +253,10 @@ def test_a_failed_evaluation_stops_the_commands_still_running(
     """One of a study's commands fails while another still runs: the failure is reported and
     the running one is stopped (SIGTERM; a training run saves on its way out), not left
     behind."""
-    from snnkart.app import launch, study_eval
+    from snnkart.app import pool, study_eval
     from snnkart.app.reporter import Silent
+    from snnkart.app.worker import EvalJob, TrainJob
+    from snnkart.rl.config import load_config
 
     started: list[subprocess.Popen[bytes]] = []
     real_popen = subprocess.Popen
@@ -264,11 +266,13 @@ def test_a_failed_evaluation_stops_the_commands_still_running(
         started.append(proc)
         return proc
 
-    monkeypatch.setattr(study_eval.subprocess, "Popen", recording_popen)
-    monkeypatch.setattr(launch, "STOP_GRACE_S", 30.0)
-    long = ["train", "--env", "grid", "--policy", "ann", "--steps", "100000000",
-            "--out", str(tmp_path / "long")]  # fmt: skip
-    bad = ["eval", str(tmp_path / "no-such-run")]
+    monkeypatch.setattr(pool.subprocess, "Popen", recording_popen)
+    monkeypatch.setattr(pool, "STOP_GRACE_S", 30.0)
+    config = tmp_path / "long.toml"
+    config.write_text(load_config(overrides={"env": "grid", "policy": "ann",
+                                             "total_steps": 100_000_000}).to_toml())  # fmt: skip
+    long = TrainJob(str(config), str(tmp_path / "long"))
+    bad = EvalJob(str(tmp_path / "no-such-run"), 2, 0, str(tmp_path / "bad.json"))
     try:
         with pytest.raises(UsageError, match="no-such-run"):
             study_eval._run_all([("long", long), ("bad", bad)], 2, Silent(), "evals")

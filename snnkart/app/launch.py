@@ -1,12 +1,12 @@
 """Many training runs on one machine: a local process pool (the launcher's default).
 
-Each run is one ``snnkart train`` process with one torch thread, as many at once as there are
-cores. The pool is resumable: a run whose checkpoint already covers its steps is not trained
-again, one that was interrupted is resumed from its checkpoint. Ctrl-C or SIGTERM reaches every
-running run (as SIGTERM: each saves a checkpoint at its next iteration boundary, as
-``snnkart train`` does);
-the pool waits for them to exit and leaves no worker process behind. Results are gathered from
-each run's checkpoint metadata into one record per run.
+Each run is one job of the process pool (:mod:`snnkart.app.pool`): a worker process that trains
+it as ``snnkart train`` does, with one torch thread, as many at once as there are cores. The
+pool is resumable: a run whose checkpoint already covers its steps is not trained again, one
+that was interrupted is resumed from its checkpoint. Ctrl-C or SIGTERM reaches every running
+run (as SIGTERM: each saves a checkpoint at its next iteration boundary, as ``snnkart train``
+does); the pool waits for them to exit and leaves no worker process behind. Results are
+gathered from each run's checkpoint metadata into one record per run.
 """
 
 from __future__ import annotations
@@ -14,21 +14,15 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import signal
-import subprocess
-import sys
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from snnkart import faults
+from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.reporter import Reporter
+from snnkart.app.worker import TrainJob
 from snnkart.errors import UsageError
 from snnkart.rl.config import TrainConfig
-
-STOP_GRACE_S = 120.0
-"""How long the pool waits for interrupted runs to save their checkpoints before killing them."""
 
 
 @dataclass(frozen=True)
@@ -80,24 +74,6 @@ def result_of(
     )  # fmt: skip
 
 
-def stop_processes(procs: list[subprocess.Popen[bytes]]) -> None:
-    """SIGTERM to each process's group (every ``snnkart`` command takes it like Ctrl-C: a
-    training run saves at its next iteration boundary, an evaluation stops its Lava runtime),
-    also when started with SIGINT ignored, as under ``nohup``; SIGKILL to a group still there
-    after :data:`STOP_GRACE_S`. The processes must have been started in sessions of their own."""
-    for proc in procs:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGTERM)
-    deadline = time.monotonic() + STOP_GRACE_S
-    for proc in procs:
-        try:
-            proc.wait(timeout=max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-
-
 class LocalPool:
     """Runs a list of :class:`RunSpec` under ``out`` (``out/<name>``), ``jobs`` at a time."""
 
@@ -123,65 +99,43 @@ class LocalPool:
                 results[spec.name] = result_of(spec, run_dir, "reused", 0.0, None)
             else:
                 pending.append(spec)
-        running: dict[str, tuple[RunSpec, subprocess.Popen[bytes], float]] = {}
         stopped = False
         with reporter.progress("runs", len(specs)) as task:
             for _ in results:
                 task.advance()
+
+            def ended(spec: RunSpec, end: Exit) -> None:
+                results[spec.name] = self._result(spec, end)
+                task.advance()
+
             try:
-                with faults.caught():
-                    while pending or running:
-                        while pending and len(running) < self.jobs:
-                            spec = pending.pop(0)
-                            running[spec.name] = (spec, self._start(spec), time.perf_counter())
-                        self._reap(running, results, task)
-                        faults.check()
-                        time.sleep(0.1)
+                Pool(self.jobs).run(pending, self._job, ended, stopped=ended)
             except KeyboardInterrupt:
                 stopped = True
-                stop_processes([proc for _, proc, _ in running.values()])
-                self._reap(running, results, task, final=True)
                 for spec in pending:
-                    results[spec.name] = result_of(
-                        spec, self.out / spec.name, "interrupted", 0.0, None
-                    )
-                raise
-            except BaseException:  # any other failure: no run outlives the pool either
-                stop_processes([proc for _, proc, _ in running.values()])
+                    if spec.name not in results:
+                        results[spec.name] = result_of(
+                            spec, self.out / spec.name, "interrupted", 0.0, None
+                        )
                 raise
             finally:
                 self._write([results[s.name] for s in specs if s.name in results], stopped)
         return [results[s.name] for s in specs]
 
-    def _start(self, spec: RunSpec) -> subprocess.Popen[bytes]:
+    def _job(self, spec: RunSpec) -> Job:
+        """The run's job: its directory made and its config written, just before it starts."""
         run_dir = self.out / spec.name
         run_dir.mkdir(parents=True, exist_ok=True)
         config = self.out / f".{spec.name}.config.toml"
         config.write_text(spec.config.to_toml())
-        resume = ["--resume"] if (run_dir / "config.toml").is_file() else []
-        env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-        log = (run_dir / "launch.log").open("ab")
-        try:
-            return subprocess.Popen(
-                [sys.executable, "-m", "snnkart.cli", "train", "--config", str(config),
-                 "--out", str(run_dir), *resume],
-                stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True,
-            )  # fmt: skip
-        finally:
-            log.close()
+        resume = (run_dir / "config.toml").is_file()
+        return Job(TrainJob(str(config), str(run_dir), resume), log=run_dir / "launch.log")
 
-    def _reap(self, running: dict[str, Any], results: dict[str, RunResult], task: Any,
-              final: bool = False) -> None:  # fmt: skip
-        for name, (spec, proc, start) in list(running.items()):
-            code = proc.wait() if final else proc.poll()
-            if code is None:
-                continue
-            del running[name]
-            run_dir = self.out / name
-            status = {0: "done", 130: "interrupted", 143: "interrupted"}.get(code, "failed")
-            error = None if status != "failed" else f"exit {code}; see {run_dir / 'launch.log'}"
-            results[name] = result_of(spec, run_dir, status, time.perf_counter() - start, error)
-            task.advance()
+    def _result(self, spec: RunSpec, end: Exit) -> RunResult:
+        run_dir = self.out / spec.name
+        status = {0: "done", 130: "interrupted", 143: "interrupted"}.get(end.code, "failed")
+        error = None if status != "failed" else f"exit {end.code}; see {run_dir / 'launch.log'}"
+        return result_of(spec, run_dir, status, end.seconds, error)
 
     def _write(self, results: list[RunResult], interrupted: bool) -> None:
         from snnkart.io import write_json

@@ -18,17 +18,18 @@ def _check_origin(odom_origin: str) -> None:
 
 
 def run_sim(
-    track: str, seed: int, lock_step: bool, out: Path | None, timeout: float,
-    max_steps: int | None, odom_origin: str = "track",
+    track: str | None, seed: int, lock_step: bool, out: Path | None, timeout: float,
+    max_steps: int | None, odom_origin: str = "track", policy: Path | None = None,
 ) -> dict[str, Any]:  # fmt: skip
-    from snnkart.envs import make
+    """Play Gazebo's part for one episode; with ``policy`` (what ``ros drive`` runs) in the env
+    that policy was trained for, its track and env config (:func:`sim_env`)."""
     from snnkart.ros.rospy_import import init_node
     from snnkart.ros.sim import SimBridge
 
     _check_origin(odom_origin)
-    init_node("snnkart_sim")
-    env = make("gazebo", track=track)
+    env = sim_env(policy, track)  # refused before ROS starts
     try:
+        init_node("snnkart_sim")
         result = SimBridge(env, seed, lock_step, timeout, odom_origin).run(max_steps)
     finally:
         env.close()
@@ -36,6 +37,64 @@ def run_sim(
     if out is not None:
         write_json(out, record)
     return record
+
+
+def sim_env(policy: Path | None, track: str | None) -> Any:
+    """The env ``ros sim`` runs: the gazebo env the driving ``policy`` was trained for (its
+    track and env config; ``track`` must then be that same track, since the driver computes
+    its checkpoint features on it), or without a policy the default gazebo env on ``track``
+    (default small_S)."""
+    from snnkart.envs import make
+    from snnkart.envs.tracks import TrackError, load_track, track_sha256
+
+    if policy is None:
+        return make("gazebo", track=track or "small_S")
+    env, trained = _policy_env(policy)
+    if track is not None:
+        try:
+            same = track_sha256(load_track(track)) == track_sha256(trained)
+        except TrackError as exc:
+            env.close()
+            raise DeployError(f"--track: {exc}") from exc
+        if not same:
+            env.close()
+            raise DeployError(
+                f"--track {track} is not the track {policy} was trained on "
+                f"({trained.name}), on which `ros drive` computes its "
+                "checkpoint features; drop --track to simulate the policy's own"
+            )
+    return env
+
+
+def _policy_env(policy: Path) -> tuple[Any, Any]:
+    """The gazebo env ``policy`` (a run directory or its policy.nir) was trained for, and the
+    track it was trained on."""
+    if policy.suffix == ".nir":
+        from snnkart.contract.manifest import Manifest, manifest_path
+        from snnkart.eval.policy_env import make_policy_env, resolve_track
+
+        manifest = Manifest.read(manifest_path(policy))
+        trained = resolve_track(manifest, None).track
+        env = make_policy_env(manifest, None, trained)
+    else:
+        from snnkart.rl.open_run import open_run
+
+        run = open_run(policy)
+        trained = run.track
+        env = run.config.make_env(track=trained)
+    _check_gazebo(env)
+    return env, trained
+
+
+def _check_gazebo(env: Any) -> None:
+    """Refuse (closing it) an env that is not the gazebo env: the bridge drives its robot."""
+    name = getattr(env.unwrapped, "env_name", "?")
+    if name != "gazebo":
+        env.close()
+        raise DeployError(
+            f"the policy was trained on the {name} env; the ROS bridge drives the gazebo env's "
+            "differential-drive robot"
+        )
 
 
 def _policy(policy: Path, backend: str, precision: str) -> tuple[Any, Any]:
@@ -54,13 +113,7 @@ def _policy(policy: Path, backend: str, precision: str) -> tuple[Any, Any]:
             raise DeployError(f"--backend {backend} runs an exported policy.nir, not {policy}")
         predictor = open_backend(policy, backend, precision)
         env = make_policy_env(predictor.manifest, None, None)
-    name = getattr(env.unwrapped, "env_name", "?")
-    if name != "gazebo":
-        env.close()
-        raise DeployError(
-            f"the policy was trained on the {name} env; the ROS bridge drives the gazebo env's "
-            "differential-drive robot"
-        )
+    _check_gazebo(env)
     return predictor, env
 
 

@@ -5,16 +5,12 @@ in fixed point, checked step by step against the reference of the same arithmeti
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-import tempfile
-import time
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
-from snnkart.app.launch import stop_processes
+from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.reporter import Reporter
+from snnkart.app.worker import EvalJob, WorkerRequest
 from snnkart.errors import UsageError
 
 if TYPE_CHECKING:
@@ -36,15 +32,16 @@ def eval_backend(run: Run) -> str:
     return "torch" if run.policy == "ann" else "torch (cuba with hidden biases: not on Lava)"
 
 
-def _eval_target(run: Run, runs_dir: Path) -> tuple[list[str], Path]:
-    """The ``snnkart eval`` arguments for a run, and the file holding its summary."""
+def _eval_job(run: Run, runs_dir: Path, study: StudyConfig) -> tuple[EvalJob, Path]:
+    """A run's evaluation (as ``snnkart eval`` runs it), and the file holding its summary."""
     run_dir = runs_dir / run.spec.name
+    episodes, seed = study.eval_episodes, study.eval_seed
     if exportable(run):
         out = run_dir / "study-eval-nir-ref-fixed"
-        args = ["--backend", "nir-ref", "--precision", "fixed", "--out", str(out)]
-        return args, out / "deploy.json"
+        job = EvalJob(str(run_dir), episodes, seed, str(out), "nir-ref", "fixed")
+        return job, out / "deploy.json"
     out = run_dir / "study-eval.json"
-    return ["--out", str(out)], out
+    return EvalJob(str(run_dir), episodes, seed, str(out)), out
 
 
 def _stale(result: Path, checkpoint: Path) -> bool:
@@ -52,64 +49,36 @@ def _stale(result: Path, checkpoint: Path) -> bool:
 
 
 PARITY_FAILED = 4
-"""``snnkart eval``/``deploy``'s exit code when a backend left its reference (the record is
-written and says where)."""
+"""The worker's (and ``snnkart eval``/``deploy``'s) exit code when a backend left its reference
+(the record is written and says where)."""
 
 
-def _run_all(cmds: list[tuple[str, list[str]]], jobs: int, reporter: Reporter, what: str,
+def _run_all(jobs: list[tuple[str, WorkerRequest]], width: int, reporter: Reporter, what: str,
              ok: tuple[int, ...] = (0,)) -> None:  # fmt: skip
-    """Run ``snnkart`` commands (name, args), ``jobs`` at a time, one thread each; an exit
-    code outside ``ok`` fails. Whatever ends the loop (a failure, Ctrl-C, SIGTERM) stops the
-    commands still running first, as the launcher stops its runs: none outlives the study."""
-    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-    todo = list(cmds)
-    running: list[tuple[str, subprocess.Popen[bytes], IO[bytes]]] = []
-    try:
-        with reporter.progress(what, len(todo)) as task:
-            while todo or running:
-                while todo and len(running) < jobs:
-                    name, args = todo.pop(0)
-                    # stderr to a file, not a pipe, which a chatty command could fill and block on
-                    err: IO[bytes] = tempfile.TemporaryFile()
-                    try:
-                        proc = subprocess.Popen([sys.executable, "-m", "snnkart.cli", *args],
-                                                env=env, stdout=subprocess.DEVNULL, stderr=err,
-                                                start_new_session=True)  # fmt: skip
-                    except BaseException:
-                        err.close()
-                        raise
-                    running.append((name, proc, err))
-                for name, proc, err in list(running):
-                    code = proc.poll()
-                    if code is None:
-                        continue
-                    running.remove((name, proc, err))
-                    with err:
-                        if code not in ok:
-                            err.seek(max(0, err.seek(0, os.SEEK_END) - 500))
-                            text = err.read().decode(errors="replace")
-                            raise UsageError(f"{what}: {name} failed (exit {code}): {text}")
-                    task.advance()
-                time.sleep(0.1)
-    finally:
-        stop_processes([proc for _, proc, _ in running])
-        for _, _, err in running:
-            err.close()
+    """Run worker requests (name, request) on the process pool, ``width`` at a time; an exit
+    status outside ``ok`` fails. Whatever ends the loop (a failure, Ctrl-C, SIGTERM) stops the
+    jobs still running first, as the launcher stops its runs: none outlives the study."""
+    with reporter.progress(what, len(jobs)) as task:
+
+        def ended(item: tuple[str, WorkerRequest], end: Exit) -> None:
+            if end.code not in ok:
+                raise UsageError(f"{what}: {item[0]} failed (exit {end.code}): {end.tail}")
+            task.advance()
+
+        Pool(width).run(jobs, lambda item: Job(item[1]), ended)
 
 
 def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
              reporter: Reporter) -> dict[str, dict[str, Any]]:  # fmt: skip
     """Each run's evaluation summary, evaluating (``jobs`` at a time) where none newer than
     its checkpoint exists."""
-    cmds = []
+    todo: list[tuple[str, WorkerRequest]] = []
     for run in runs:
-        args, summary = _eval_target(run, runs_dir)
+        job, summary = _eval_job(run, runs_dir, study)
         if _stale(summary, runs_dir / run.spec.name / "checkpoint.pt"):
-            cmds.append((run.spec.name, ["eval", str(runs_dir / run.spec.name),
-                                         "--episodes", str(study.eval_episodes),
-                                         "--seed", str(study.eval_seed), *args]))  # fmt: skip
-    _run_all(cmds, jobs, reporter, "evaluations")
-    return {run.spec.name: _summary(_eval_target(run, runs_dir)[1]) for run in runs}
+            todo.append((run.spec.name, job))
+    _run_all(todo, jobs, reporter, "evaluations")
+    return {run.spec.name: _summary(_eval_job(run, runs_dir, study)[1]) for run in runs}
 
 
 def median_seed(records: list[dict[str, Any]]) -> dict[str, Any]:
@@ -130,16 +99,14 @@ def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: St
         if r["eval_backend"] == "nir-ref fixed":
             cells.setdefault((r["track"], r["env"], r["variant"]), []).append(r)
     chosen = [median_seed(rs) for rs in cells.values()]
-    cmds = []
+    todo: list[tuple[str, WorkerRequest]] = []
     for r in chosen:
         run_dir = runs_dir / r["name"]
         if _stale(run_dir / DEPLOY_DIR / "deploy.json", run_dir / "checkpoint.pt"):
-            cmds.append((r["name"], ["eval", str(run_dir), "--backend", "lava-sim",
-                                     "--precision", "fixed", "--episodes",
-                                     str(study.deploy_episodes), "--seed", str(study.eval_seed),
-                                     "--out", str(run_dir / DEPLOY_DIR)]))  # fmt: skip
+            todo.append((r["name"], EvalJob(str(run_dir), study.deploy_episodes, study.eval_seed,
+                                            str(run_dir / DEPLOY_DIR), "lava-sim", "fixed")))  # fmt: skip
     # a deployment that left the reference still wrote its record: it shows as not bit-exact
-    _run_all(cmds, 1, reporter, "deployments on lava-sim", ok=(0, PARITY_FAILED))
+    _run_all(todo, 1, reporter, "deployments on lava-sim", ok=(0, PARITY_FAILED))
     out = []
     for r in chosen:
         result = json.loads((runs_dir / r["name"] / DEPLOY_DIR / "deploy.json").read_text())

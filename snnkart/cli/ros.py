@@ -32,7 +32,17 @@ LockOpt = Annotated[
 
 @ros_app.command("sim")
 def sim(
-    track: Annotated[str, typer.Option("--track", "-t")] = "small_S",
+    policy: Annotated[
+        Path | None,
+        typer.Option(
+            help="the policy `ros drive` runs (a gazebo run or its policy.nir): simulate the env "
+            "it was trained for, its track and env config"
+        ),
+    ] = None,
+    track: Annotated[
+        str | None,
+        typer.Option("--track", "-t", help="default: the policy's track, else small_S"),
+    ] = None,
     seed: Annotated[int, typer.Option(help="seed of the episode")] = 10_000,
     lock_step: LockOpt = True,
     timeout: Annotated[float, typer.Option(help="lock-step: seconds to wait for a command")] = 30,
@@ -40,11 +50,14 @@ def sim(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="episode record (JSON)")] = None,
     odom_origin: OriginOpt = "track",
 ) -> None:
-    """Play Gazebo's part: the gazebo env publishes /scan, /odom and /clock and applies /cmd_vel."""
+    """Play Gazebo's part: the gazebo env publishes /scan, /odom and /clock and applies /cmd_vel.
+
+    With --policy, a --track other than the one the policy was trained on is refused: the
+    driver computes the checkpoint features of its observation on the policy's track."""
     from snnkart.app.ros_bridge import run_sim
 
     record = guard(
-        lambda: run_sim(track, seed, lock_step, out, timeout, max_steps, odom_origin),
+        lambda: run_sim(track, seed, lock_step, out, timeout, max_steps, odom_origin, policy),
         "the simulation stopped",
     )
     summary = {k: v for k, v in record.items() if k != "positions"}

@@ -29,11 +29,12 @@ from snnkart.envs.spec import env_spec, spec_hash
 from snnkart.envs.tracks import embed_track, load_track
 from snnkart.errors import RunError
 from snnkart.rl.buffer import Batch, RolloutBuffer, compute_gae
-from snnkart.rl.checkpoint import RunningMeanStd, check_compatible, load_checkpoint
 from snnkart.rl.config import TrainConfig, read_run_config
+from snnkart.rl.normalise import RunningMeanStd
+from snnkart.rl.open_run import OpenedRun, open_run
 from snnkart.rl.policies import policy_for
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
-from snnkart.rl.run_dir import RunDir, checkpoint_track, trained_config
+from snnkart.rl.run_dir import RunDir
 from snnkart.rl.stopping import check, stopped
 
 __all__ = ["Progress", "RunError", "Trainer", "compute_gae", "normalize_obs", "policy_for"]
@@ -64,14 +65,12 @@ class Trainer:
         self.run_dir = Path(run_dir)
         self.cfg = cfg = _resolve_config(cfg, self.run_dir, resume)
         self.out = RunDir(self.run_dir, cfg.run.tensorboard)
-        # A resumed run trains on the track its checkpoint carries: the file may have moved.
-        checkpoint = (
-            load_checkpoint(self.out.latest) if resume and self.out.latest.is_file() else None
-        )
-        if checkpoint is not None:
-            self.track = checkpoint_track(checkpoint[1], cfg, self.out.latest)
-            # resume in the env it was trained in, whatever the defaults are today
-            self.cfg = cfg = trained_config(checkpoint[1], cfg, self.track)
+        # A resumed run trains on the track its checkpoint carries (the file may have moved),
+        # in the env it was trained in, whatever the defaults are today; with cfg's length.
+        opened = open_run(self.run_dir) if resume and self.out.latest.is_file() else None
+        if opened is not None:
+            self.track = opened.track
+            self.cfg = cfg = opened.config.model_copy(update={"total_steps": cfg.total_steps})
         else:
             self.track = load_track(cfg.track)
         torch.set_num_threads(cfg.run.torch_threads)
@@ -82,7 +81,7 @@ class Trainer:
         self.env0 = self.karts[0]
         self.spec = env_spec(self.env0)
         torch.manual_seed(cfg.seed)
-        self.policy = policy_for(cfg, self.env0)
+        self.policy = policy_for(cfg, self.env0) if opened is None else opened.policy
         self.optimizer = torch.optim.Adam(
             self.policy.parameters(), lr=p.learning_rate, eps=1e-5, foreach=True
         )
@@ -91,8 +90,8 @@ class Trainer:
         self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
         self.progress = Progress()
         self.rng = np.random.default_rng(cfg.seed)
-        if checkpoint is not None:
-            self._restore(*checkpoint)
+        if opened is not None:
+            self._restore(opened)
         if resume:
             self.out.trim_metrics(self.progress.iteration)
         self.num_iterations = math.ceil(cfg.total_steps / cfg.batch_size)
@@ -100,12 +99,13 @@ class Trainer:
 
     # -- checkpoints -------------------------------------------------------------------------
 
-    def _restore(self, state: dict[str, Any], meta: dict[str, Any]) -> None:
-        check_compatible(meta, self.env0, str(self.out.latest))
-        self.policy.load_state_dict(state["policy"])
+    def _restore(self, run: OpenedRun) -> None:
+        """Take over an opened run's training state: weights (already in ``run.policy``),
+        optimizer, normaliser, counters and random number generators."""
+        state = run.state
         self.optimizer.load_state_dict(state["optimizer"])
-        self.obs_rms = RunningMeanStd.from_state(state["obs_rms"])
-        self.progress = Progress(**{k: int(v) for k, v in state["progress"].items()})
+        self.obs_rms = run.obs_rms
+        self.progress = run.progress
         torch.set_rng_state(state["torch_rng"])
         if "numpy_state" in state:  # a latest-only checkpoint (:meth:`save` with history off)
             self.rng = np.random.default_rng()

@@ -19,8 +19,8 @@ import torch
 from snnkart.envs.base import KartEnv
 from snnkart.envs.tracks import Track
 from snnkart.rl.buffer import RolloutBuffer
-from snnkart.rl.checkpoint import RunningMeanStd
 from snnkart.rl.config import PPOConfig, TrainConfig
+from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.policies import ActorCritic
 
 

@@ -16,8 +16,8 @@ from typing import Any
 import torch
 
 from snnkart.envs.tracks import Track
-from snnkart.rl.checkpoint import RunningMeanStd
 from snnkart.rl.config import StopConfig, TrainConfig
+from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.policies import ActorCritic
 from snnkart.rl.rollout import Progress
 from snnkart.rl.trained import LoadedRun, TorchPredictor

@@ -10,21 +10,19 @@ import numpy as np
 import torch
 
 from snnkart.contract.encoding import rate_generator, rate_probabilities, rate_spikes
-from snnkart.envs.tracks import Track, TrackError, embed_track
-from snnkart.rl.checkpoint import (
-    CheckpointError,
-    RunningMeanStd,
-    check_compatible,
-    load_checkpoint,
-)
-from snnkart.rl.config import TrainConfig, read_run_config
-from snnkart.rl.policies import ActorCritic, SNNPolicy, policy_for
+from snnkart.envs.tracks import Track, embed_track
+from snnkart.rl.checkpoint import CheckpointError
+from snnkart.rl.config import TrainConfig
+from snnkart.rl.normalise import RunningMeanStd
+from snnkart.rl.open_run import open_run
+from snnkart.rl.policies import ActorCritic, SNNPolicy
 from snnkart.rl.rollout import normalize_obs
-from snnkart.rl.run_dir import checkpoint_track, trained_config
 
 
 @dataclass
 class LoadedRun:
+    """A trained run opened for evaluation and export: its policy in evaluation mode."""
+
     run_dir: Path
     config: TrainConfig
     policy: ActorCritic
@@ -51,34 +49,13 @@ class LoadedRun:
 
 def load_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> LoadedRun:
     """Load ``run_dir/config.toml`` and a checkpoint (default: the latest), check that it fits
-    the env the config describes, and return the policy in evaluation mode."""
-    run_dir = Path(run_dir)
-    cfg = read_run_config(run_dir)
-    ckpt = Path(checkpoint) if checkpoint is not None else run_dir / "checkpoint.pt"
-    state, meta = load_checkpoint(ckpt)
-    try:
-        track = checkpoint_track(meta, cfg, ckpt)
-    except TrackError as exc:
-        raise CheckpointError(
-            f"{ckpt}: {exc} (this checkpoint predates embedded tracks: put the track file back "
-            "where it was trained, or retrain)"
-        ) from exc
-    cfg = trained_config(meta, cfg, track)  # the env it was trained in, whatever the defaults
-    env = cfg.make_env(track=track)
-    try:
-        check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]
-        policy = policy_for(cfg, env.unwrapped)  # type: ignore[arg-type]
-    finally:
-        env.close()
-    try:
-        policy.load_state_dict(state["policy"])
-    except RuntimeError as exc:
-        raise CheckpointError(
-            f"{ckpt}: weights do not fit the policy in config.toml ({exc})"
-        ) from exc
-    policy.eval()
-    obs_rms = RunningMeanStd.from_state(state["obs_rms"])
-    return LoadedRun(run_dir, cfg, policy, obs_rms, meta, ckpt, track)
+    the env the config describes (:func:`~snnkart.rl.open_run.open_run`), and return the
+    policy in evaluation mode."""
+    run = open_run(run_dir, checkpoint)
+    run.policy.eval()
+    return LoadedRun(
+        run.run_dir, run.config, run.policy, run.obs_rms, run.meta, run.checkpoint, run.track
+    )
 
 
 class TorchPredictor:

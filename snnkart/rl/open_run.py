@@ -1,0 +1,117 @@
+"""Opening a trained run: the one sequence that resuming (:class:`snnkart.rl.ppo.Trainer`) and
+loading (:func:`snnkart.rl.trained.load_run`) share.
+
+read ``config.toml`` -> read the checkpoint -> the track embedded in it -> the config rebuilt
+with the env config it was trained in -> make the env -> check the checkpoint fits it -> build
+the policy and load its weights, and the frozen observation normaliser.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from snnkart.envs.spec import env_spec
+from snnkart.envs.tracks import Track, TrackError
+from snnkart.rl.checkpoint import CheckpointError, check_compatible, load_checkpoint
+from snnkart.rl.config import TrainConfig, read_run_config
+from snnkart.rl.normalise import RunningMeanStd
+from snnkart.rl.policies import ActorCritic, policy_for
+from snnkart.rl.rollout import Progress
+from snnkart.rl.run_dir import checkpoint_track, trained_config
+
+
+@dataclass(frozen=True)
+class RunSchedule:
+    """Where a run stood in the schedules its own length sets (learning-rate and entropy
+    annealing, the rate-regulariser warm-up) when its checkpoint was written."""
+
+    total_steps: int
+    """The length the run was training for (the checkpoint's config; ``config.toml`` for a
+    checkpoint without one)."""
+    batch_size: int
+    """Env steps per iteration (``ppo.num_envs * ppo.num_steps``)."""
+    iteration: int
+    global_step: int
+    learning_rate: float | None
+    """The optimizer's learning rate at the checkpoint (None: no optimizer state saved)."""
+
+    @property
+    def num_iterations(self) -> int:
+        """The iterations ``total_steps`` makes: the length of the annealing schedules."""
+        return math.ceil(self.total_steps / self.batch_size)
+
+
+@dataclass(frozen=True)
+class OpenedRun:
+    """A run directory with one of its checkpoints, opened and checked against its env."""
+
+    run_dir: Path
+    checkpoint: Path
+    config: TrainConfig
+    """``config.toml`` with the env config the checkpoint was trained in (a default that
+    changed since does not change the env)."""
+    track: Track
+    """The track the checkpoint was trained on (embedded in it, or ``config.track``)."""
+    env_spec: dict[str, Any]
+    """The spec of the env ``config`` and ``track`` make; the checkpoint fits it."""
+    policy: ActorCritic
+    """The policy with the checkpoint's weights, in the mode it was built in (training)."""
+    obs_rms: RunningMeanStd
+    progress: Progress
+    schedule: RunSchedule
+    state: dict[str, Any]
+    """The checkpoint's state dict (optimizer, RNG states: what a resume restores besides)."""
+    meta: dict[str, Any]
+    """The checkpoint's metadata (versions, env spec, config, track, progress counters)."""
+
+
+def open_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> OpenedRun:
+    """Open ``run_dir`` at ``checkpoint`` (default: its latest, ``checkpoint.pt``); raise
+    :class:`CheckpointError` if the checkpoint does not fit the env its config describes."""
+    run_dir = Path(run_dir)
+    cfg = read_run_config(run_dir)
+    ckpt = Path(checkpoint) if checkpoint is not None else run_dir / "checkpoint.pt"
+    state, meta = load_checkpoint(ckpt)
+    try:
+        track = checkpoint_track(meta, cfg, ckpt)
+    except TrackError as exc:
+        raise CheckpointError(
+            f"{ckpt}: {exc} (this checkpoint predates embedded tracks: put the track file back "
+            "where it was trained, or retrain)"
+        ) from exc
+    cfg = trained_config(meta, cfg, track)  # the env it was trained in, whatever the defaults
+    env = cfg.make_env(track=track)
+    try:
+        check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]
+        spec = env_spec(env.unwrapped)  # type: ignore[arg-type]
+        policy = policy_for(cfg, env.unwrapped)  # type: ignore[arg-type]
+    finally:
+        env.close()
+    try:
+        policy.load_state_dict(state["policy"])
+    except RuntimeError as exc:
+        raise CheckpointError(
+            f"{ckpt}: weights do not fit the policy in config.toml ({exc})"
+        ) from exc
+    progress = Progress(**{k: int(v) for k, v in state.get("progress", {}).items()})
+    return OpenedRun(
+        run_dir, ckpt, cfg, track, spec, policy, RunningMeanStd.from_state(state["obs_rms"]),
+        progress, _schedule(cfg, meta, state, progress), state, meta,
+    )  # fmt: skip
+
+
+def _schedule(
+    cfg: TrainConfig, meta: dict[str, Any], state: dict[str, Any], progress: Progress
+) -> RunSchedule:
+    groups = state.get("optimizer", {}).get("param_groups") or [{}]
+    lr = groups[0].get("lr")
+    return RunSchedule(
+        total_steps=int(meta.get("config", {}).get("total_steps", cfg.total_steps)),
+        batch_size=cfg.batch_size,
+        iteration=progress.iteration,
+        global_step=progress.global_step,
+        learning_rate=None if lr is None else float(lr),
+    )
