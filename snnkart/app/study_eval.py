@@ -15,6 +15,7 @@ from typing import IO, TYPE_CHECKING, Any
 
 from snnkart.app.launch import stop_processes
 from snnkart.app.reporter import Reporter
+from snnkart.app.study_summary import counts_per_step
 from snnkart.errors import UsageError
 
 if TYPE_CHECKING:
@@ -166,4 +167,5 @@ def _summary(path: Path) -> dict[str, Any]:
     counts = data.get("counts")
     if counts and counts.get("env_steps"):
         summary["spikes_per_step"] = sum(counts["spikes"]) / counts["env_steps"]
+        summary["counts_per_step"] = counts_per_step(data)
     return summary

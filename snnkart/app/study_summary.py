@@ -71,3 +71,27 @@ def pct_of_ann(ann: dict[str, Any] | None, snn: dict[str, Any]) -> float | None:
         return None
     a, s = ann["steps_to_finishes"]["median"], snn["steps_to_finishes"]["median"]
     return None if a is None or s is None else 100.0 * a / s
+
+
+def counts_per_step(deploy: dict[str, Any]) -> dict[str, Any]:
+    """A reference evaluation's counts per env step (one inference) and the network they were
+    counted on, from its ``deploy.json``: what ``snnkart report --sweep`` prices."""
+    manifest, counts = deploy["manifest"], deploy["counts"]
+    n = max(int(counts["env_steps"]), 1)
+    over = counts["pipeline_overhead"]
+    return {
+        "num_steps": manifest["num_steps"],
+        "sizes": [layer["size"] for layer in manifest["layers"]],
+        "network": deploy["network"],
+        "precision": deploy["precision"],
+        "encoding": manifest["encoding"],
+        "population": manifest.get("population"),
+        "action_mode": manifest["action_mode"],
+        "env_steps": counts["env_steps"],
+        "spikes_per_step": [s / n for s in counts["spikes"]],
+        "synops_per_step": [s / n for s in counts["synops"]],
+        "neuron_updates_per_step": [s / n for s in counts["neuron_updates"]],
+        "overhead_spikes_per_step": [s / n for s in over["spikes"]],
+        "overhead_synops_per_step": [s / n for s in over["synops"]],
+        "overhead_neuron_updates_per_step": [s / n for s in over["neuron_updates"]],
+    }
