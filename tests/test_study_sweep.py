@@ -58,6 +58,7 @@ def test_a_variant_study_records_each_runs_counts_per_env_step(sweep: Path) -> N
     assert [r["name"] for r in record["runs"]] == [
         "small_S-grid-snn-T2-s1", "small_S-grid-snn-T4_r0.05-s1"]  # fmt: skip
     assert [c["variant"] for c in record["cells"]] == ["T2", "T4_r0.05"]
+    assert "Data: tuning (the results protocol" in (sweep / "study.md").read_text()
     for run, num_steps in zip(record["runs"], (2, 4), strict=True):
         deploy = json.loads((sweep / "runs" / run["name"] / EVAL / "deploy.json").read_text())
         counts, n = deploy["counts"], deploy["counts"]["env_steps"]
