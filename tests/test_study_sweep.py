@@ -71,6 +71,9 @@ def test_a_variant_study_records_each_runs_counts_per_env_step(sweep: Path) -> N
             assert per_step[f"overhead_{key}_per_step"] == [c / n for c in overhead], key
         assert run["eval_success_rate"] == deploy["summary"]["success_rate"]
         assert run["eval_mean_lap_time"] == deploy["summary"]["mean_lap_time"]
+        cell = next(c for c in record["cells"] if c["variant"] == run["variant"])
+        chip = sum(counts["synops"][:-1]) / n  # the last layer's fan-out is the host's readout
+        assert cell["eval_synops_per_step"]["median"] == pytest.approx(chip, rel=1e-12)
 
 
 @pytest.mark.timeout(600)
