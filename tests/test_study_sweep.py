@@ -116,6 +116,8 @@ def test_report_sweep_refuses_an_old_or_foreign_file_in_one_line(
         ([1, 2], "not a study.json"),
         ({"schema": "snnkart/study/v1", "machine": {}, "runs": [{"eval_counts_per_step": None}]},
          "no run of this study has counts"),
+        ({"schema": "snnkart/study/v1", "machine": {}, "runs": [{"eval_spikes_per_step": 9.0}]},
+         "written by an older snnkart (no counts per env step); run `snnkart study`"),
     ]  # fmt: skip
     for data, refusal in cases:
         old.write_text(json.dumps(data))

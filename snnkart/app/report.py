@@ -211,6 +211,11 @@ def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> 
     digital profile. A run's point is its variant (its cell without variants)."""
     data = _read_sweep(path)
     runs = [r for r in data.get("runs", []) if r.get("eval_counts_per_step")]
+    if data.get("runs") and all("eval_counts_per_step" not in r for r in data["runs"]):
+        raise ReportError(
+            f"--sweep {path}: written by an older snnkart (no counts per env step); run "
+            "`snnkart study` with its config again (runs and evaluations are reused)"
+        )
     if not runs:
         raise ReportError(
             f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "

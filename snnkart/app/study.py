@@ -97,7 +97,7 @@ def load_study(path: Path) -> StudyConfig:
         raise UsageError(f"cannot read the study config {path}: {exc.strerror or exc}") from exc
     except tomllib.TOMLDecodeError as exc:
         raise UsageError(f"{path}: not valid TOML: {exc}") from exc
-    if isinstance(data, dict) and "data" not in data:
+    if "data" not in data:
         raise UsageError(
             f'{path}: no data key: add data = "tuning" (seeds 1-100; small_S, big_S, ring, '
             'hairpins) or data = "reporting" (seeds 101 and up; zigzag, bends), see docs/results.md'
