@@ -1,4 +1,6 @@
 """Every benchmark runs, at tiny sizes, and what it measures side by side is like for like.
+(Learning and sparsity are studies now, ``studies/learning.toml`` and ``studies/sparsity.toml``,
+tested with ``snnkart study`` in tests/test_study*.py.)
 
 The benchmarks are not run in full here (that is minutes to hours); these smoke runs keep them
 from rotting and check the claims their ratios rest on: the same hyperparameters and schedules
@@ -112,24 +114,6 @@ def test_bench_deploy_runs_and_lava_acts_as_the_reference(tmp_path):
         assert backends[lava]["ms_per_env_step"] > 0
 
 
-@pytest.mark.timeout(180)
-def test_bench_learning_runs_trains_and_evaluates(tmp_path):
-    out = tmp_path / "learning.json"
-    run_benchmark(
-        "bench_learning", "--envs", "grid", "--policies", "ann", "--seeds", "1",
-        "--steps", "512", "--jobs", "1", "--eval-episodes", "2", "--runs", str(tmp_path / "runs"),
-        "--set", "ppo.num_envs=2", "--set", "ppo.rollout_steps=256", "--out", str(out), timeout=170,
-    )  # fmt: skip
-    results = json.loads(out.read_text())
-    check_machine(results)
-    assert results["settings"] == ["ppo.num_envs=2", "ppo.rollout_steps=256"]
-    (run,) = results["runs"]
-    assert (run["env"], run["policy"], run["seed"], run["steps"]) == ("grid", "ann", 1, 512)
-    evaluation = json.loads((Path(run["run_dir"]) / "eval.json").read_text())
-    assert len(evaluation["episodes"]) == 2
-    assert run["eval_success_rate"] == evaluation["summary"]["success_rate"]
-
-
 @pytest.mark.lava
 @pytest.mark.timeout(240)
 def test_bench_main_job_runs_the_demo_end_to_end(tmp_path):
@@ -162,30 +146,6 @@ def test_bench_main_job_runs_the_demo_end_to_end(tmp_path):
         assert lava["episodes"] == episodes and lava["env_steps"] > 100
         assert lava["mismatched_windows"] == 0 and lava["mismatched_actions"] == 0
         assert lava["float32_identical_action_fraction"] >= 0.95
-
-
-@pytest.mark.timeout(200)
-def test_bench_sparsity_trains_deploys_and_records_counts(tmp_path):
-    """Tiny size: one point, one seed, one iteration; the record holds the deployment's counts
-    per env step, and a second run reuses the deployed run instead of training again."""
-    out = tmp_path / "sparsity.json"
-    args = ("--points", "t4-r0.05", "--seeds", "1", "--steps", "2048", "--episodes", "2",
-            "--jobs", "1", "--runs", str(tmp_path / "runs"), "--out", str(out))  # fmt: skip
-    run_benchmark("bench_sparsity", *args, timeout=190)
-    results = json.loads(out.read_text())
-    check_machine(results)
-    (run,) = results["runs"]
-    deploy = json.loads(Path(run["deploy_json"]).read_text())
-    n = deploy["counts"]["env_steps"]
-    assert run["num_steps"] == 4 and run["env_steps"] == n and run["steps"] == 2048
-    assert run["synops_per_step"] == [s / n for s in deploy["counts"]["synops"]]
-    assert run["network"]["sizes"] == [64, 64] and run["precision"] == "fixed"
-    assert len(deploy["episodes"]) == 2
-    point = results["summary"]["points"]["t4-r0.05"]
-    assert point["seeds"] == [1] and point["nj_per_inference"]["loihi1"]["horowitz45_fp32_sram"] > 0
-    stamp = Path(run["deploy_json"]).stat().st_mtime
-    run_benchmark("bench_sparsity", *args, timeout=60)
-    assert Path(run["deploy_json"]).stat().st_mtime == stamp  # reused, not redone
 
 
 @pytest.mark.timeout(300)

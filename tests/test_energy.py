@@ -235,20 +235,21 @@ def report(deployed: Path, ann_run: Path, tmp_path_factory: pytest.TempPathFacto
 
 
 def _sweep_from(deployed: Path) -> dict[str, Any]:
-    """A two-point sweep file made of the deployment's own counts (and half of them)."""
+    """A two-variant study record made of the deployment's own counts (and half of them)."""
+    from snnkart.app.study_summary import counts_per_step
+
     record = json.loads((deployed / "deploy.json").read_text())
-    c, n = record["counts"], record["counts"]["env_steps"]
     runs = []
-    for point, k in (("measured", 1.0), ("half", 0.5)):
+    for variant, k in (("measured", 1.0), ("half", 0.5)):
+        counts = counts_per_step(record)
+        for key in ("spikes_per_step", "synops_per_step"):
+            counts[key] = [k * s for s in counts[key]]
         runs.append({
-            "point": point, "seed": 1, "num_steps": record["manifest"]["num_steps"],
-            "sizes": record["network"]["sizes"], "network": record["network"],
-            "precision": "fixed", "success_rate": record["summary"]["success_rate"],
-            "env_steps": n, "spikes_per_step": [k * s / n for s in c["spikes"]],
-            "synops_per_step": [k * s / n for s in c["synops"]],
-            "neuron_updates_per_step": [s / n for s in c["neuron_updates"]],
+            "variant": variant, "env": "grid", "policy": "snn", "seed": 1,
+            "eval_success_rate": record["summary"]["success_rate"],
+            "eval_counts_per_step": counts,
         })  # fmt: skip
-    return {"env": "grid", "commit": "test", "runs": runs}
+    return {"schema": "snnkart/study/v1", "machine": {"commit": "test"}, "runs": runs}
 
 
 @pytest.mark.timeout(600)

@@ -128,7 +128,7 @@ def test_a_study_runs_its_trainings_as_tune_trials(tmp_path: Path) -> None:
     assert not _ray_processes(), "a Ray instance is already running"
     cfg = tmp_path / "study.toml"
     cfg.write_text(
-        'schema = "snnkart/study-config/v1"\nenvs = ["grid"]\npolicies = ["ann", "snn"]\n'
+        'schema = "snnkart/study-config/v1"\ndata = "tuning"\nenvs = ["grid"]\npolicies = ["ann", "snn"]\n'
         f"seeds = [1]\nsteps = {2 * BATCH}\neval_episodes = 1\ndeploy_episodes = 0\n"  # Lava: test_study
         f"sets = {json.dumps(TINY)}\n"
     )

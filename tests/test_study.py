@@ -31,6 +31,7 @@ BATCH = 128
 def _write_study(path: Path, cells: str = "") -> Path:
     path.write_text(f"""
 schema = "snnkart/study-config/v1"
+data = "tuning"
 name = "tiny"
 envs = ["grid"]
 policies = ["ann", "snn"]
@@ -165,18 +166,22 @@ def test_the_median_seed_by_hand() -> None:
 
 def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
-    bad.write_text('schema = "snnkart/study-config/v1"\nseeds = []\n')
+    bad.write_text('schema = "snnkart/study-config/v1"\ndata = "tuning"\nseeds = []\n')
     with pytest.raises(UsageError, match=r"bad.toml: seeds"):
         load_study(bad)
-    bad.write_text('schema = "snnkart/study-config/v1"\nepisodes = 3\n')
+    bad.write_text('schema = "snnkart/study-config/v1"\ndata = "tuning"\nepisodes = 3\n')
     with pytest.raises(UsageError, match=r"bad.toml: episodes: Extra inputs"):
         load_study(bad)
-    bad.write_text('schema = "snnkart/study-config/v1"\ncells = {"grid-lstm" = []}\n')
+    bad.write_text(
+        'schema = "snnkart/study-config/v1"\ndata = "tuning"\ncells = {"grid-lstm" = []}\n'
+    )
     with pytest.raises(UsageError, match=r"'grid-lstm' is not a cell"):
         plan(load_study(bad))
     with pytest.raises(UsageError, match=r"--only ring/\* matches no cell .*small_S/steer-snn"):
         plan(load_study(ROOT / "studies" / "small_S.toml"), ["ring/*"])
-    bad.write_text('schema = "snnkart/study-config/v1"\nsets = ["stop.finishes=10"]\n')
+    bad.write_text(
+        'schema = "snnkart/study-config/v1"\ndata = "tuning"\nsets = ["stop.finishes=10"]\n'
+    )
     with pytest.raises(UsageError, match=r"stop\.finishes=10 would stop runs before the study's"):
         plan(load_study(bad))
     with pytest.raises(UsageError, match="cannot read the study config"):
@@ -241,7 +246,7 @@ def test_an_ablation_trains_every_variant_and_reports_its_spikes(tmp_path: Path)
     assert "| grid · T2 |" in text and "| grid · cuba |" in text and record["deployed"] == []
     assert "evaluated in torch" not in text
     bad = tmp_path / "bad.toml"
-    bad.write_text('schema = "snnkart/study-config/v1"\nvariants = {"T 4" = []}\n')
+    bad.write_text('schema = "snnkart/study-config/v1"\ndata = "tuning"\nvariants = {"T 4" = []}\n')
     with pytest.raises(UsageError, match="variant name 'T 4'"):
         load_study(bad)
 

@@ -5,7 +5,7 @@ against the ANN's, on built-in defaults.
 Steps, each writing into ``out`` (default ``runs/demo``) and skipped when already complete:
 
 1. ``snnkart train --env grid --track small_S --policy snn --seed 1`` with the demo's settings
-   (:data:`DEMO_SNN_SETTINGS`: the sparse point of the committed sparsity sweep) into
+   (:data:`DEMO_SNN_SETTINGS`: the sparse point of the sparsity study) into
    ``out/snn`` (resumable).
 2. ``snnkart train --policy ann`` (64-64, the SNN's widths) on the same track into ``out/ann``.
 3. ``snnkart export --nir`` to ``out/policy.nir`` (+ manifest).
@@ -33,12 +33,8 @@ ANN_STEPS = 300_000
 DEMO_SEED = 1
 DEMO_SNN_SETTINGS: dict[str, object] = {"snn.num_steps": 4, "snn.rate_reg": 0.05}
 """The demo's own SNN settings on top of the grid SNN defaults (the per-env training defaults
-stay as they are): the sparse point ``t4-r0.05`` of the committed sparsity sweep
-(``benchmarks/results/bench_sparsity-grid.json``): T = 4 and a firing-rate penalty of 0.05 keep
-96-100 % fixed-point success over 3 seeds with 15x fewer synaptic operations per inference than
-the dense default (T = 8, no penalty)."""
-SWEEP = Path(__file__).resolve().parents[2] / "benchmarks" / "results" / "bench_sparsity-grid.json"
-"""The committed sparsity sweep the report's accuracy-energy figure shows (in a checkout)."""
+stay as they are): T = 4 and a firing-rate penalty of 0.05, the sparse point of the sparsity
+study (why: docs/results.md, "Why the defaults are what they are")."""
 QUANT_EPISODES = 50
 EVAL_SEED = 10_000
 
@@ -173,5 +169,4 @@ def _report(deploy_dir: Path, ann_dir: Path, out: Path, reporter: Reporter) -> d
     from snnkart.app.report import run_report
 
     reporter.message("[6/6] energy report: the SNN on Loihi-class profiles vs the ANN baseline")
-    sweep = SWEEP if SWEEP.is_file() else None
-    return run_report(deploy_dir, ann_dir, None, out, reporter, sweep=sweep)
+    return run_report(deploy_dir, ann_dir, None, out, reporter)

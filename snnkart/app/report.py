@@ -180,26 +180,63 @@ def _per_return(energy: float, mean_return: float) -> float | None:
     return energy / mean_return if mean_return > 0 else None
 
 
-def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
-    """The committed sparsity sweep, priced: each run's energy per inference on ``chip`` (host
-    work on ``host``), and the 64-64 ANN's on each digital profile."""
+STUDY_RECORD = "snnkart/study/v"
+"""The schema tag of a study record (``study.json``), any version."""
+
+
+def _read_sweep(path: Path) -> dict[str, Any]:
+    """A study record (``snnkart study``'s ``study.json``), refused with a one-line reason."""
     try:
         data = json.loads(path.read_text())
-        runs = data["runs"]
-        points = [
-            {**{k: run[k] for k in ("point", "seed", "num_steps", "sizes", "success_rate")},
-             "energy_pj": total(snn_terms(SnnCounts.of_sweep(run), chip, host))}
-            for run in runs
-        ]  # fmt: skip
-    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise ReportError(f"--sweep {path}: not a bench_sparsity results file ({exc})") from exc
-    ann_pj = {}
-    if runs:
-        net = runs[0]["network"]
-        obs_dim = net["n_in"] // (runs[0].get("population") or 1)
-        ann = AnnCounts((obs_dim, 64, 64, net["n_out"]))
-        ann_pj = {f"64-64 on {d.name}": total(ann_terms(ann, d)) for d in digital}
-    return {"file": str(path), "env": data.get("env"), "commit": data.get("commit"),
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ReportError(f"--sweep {path}: not a readable study.json ({exc})") from exc
+    if not isinstance(data, dict):
+        raise ReportError(f"--sweep {path}: not a study.json (written by snnkart study)")
+    if data.get("benchmark") == "bench_sparsity":
+        raise ReportError(
+            f"--sweep {path}: written by bench_sparsity, an older snnkart; run "
+            "`snnkart study studies/sparsity.toml` again and pass its study.json"
+        )
+    if not str(data.get("schema", "")).startswith(STUDY_RECORD):
+        raise ReportError(
+            f"--sweep {path}: not a study.json (schema {data.get('schema')!r}); pass the "
+            "study.json of `snnkart study`"
+        )
+    return data
+
+
+def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
+    """A study's SNN runs, priced: each run's energy per inference on ``chip`` (host work on
+    ``host``) from the counts of its evaluation on the reference, and the 64-64 ANN's on each
+    digital profile. A run's point is its variant (its cell without variants)."""
+    data = _read_sweep(path)
+    runs = [r for r in data.get("runs", []) if r.get("eval_counts_per_step")]
+    if data.get("runs") and all("eval_counts_per_step" not in r for r in data["runs"]):
+        raise ReportError(
+            f"--sweep {path}: written by an older snnkart (no counts per env step); run "
+            "`snnkart study` with its config again (runs and evaluations are reused)"
+        )
+    if not runs:
+        raise ReportError(
+            f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "
+            "run a study of spiking policies, e.g. studies/sparsity.toml"
+        )
+    points = []
+    for run in runs:
+        counts = run["eval_counts_per_step"]
+        points.append({
+            "point": run.get("variant") or f"{run['env']}-{run['policy']}", "seed": run["seed"],
+            "num_steps": counts["num_steps"], "sizes": counts["sizes"],
+            "success_rate": run["eval_success_rate"],
+            "energy_pj": total(snn_terms(SnnCounts.of_sweep(counts), chip, host)),
+        })  # fmt: skip
+    counts = runs[0]["eval_counts_per_step"]
+    net = counts["network"]
+    obs_dim = net["n_in"] // (counts.get("population") or 1)
+    ann = AnnCounts((obs_dim, 64, 64, net["n_out"]))
+    ann_pj = {f"64-64 on {d.name}": total(ann_terms(ann, d)) for d in digital}
+    envs = sorted({r["env"] for r in runs})
+    return {"file": str(path), "env": ", ".join(envs), "commit": data["machine"].get("commit"),
             "profile": chip.name, "host_profile": host.name, "points": points,
             "ann_64_64_pj": ann_pj}  # fmt: skip
 

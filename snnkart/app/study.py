@@ -30,6 +30,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from snnkart.app.launch import LocalPool, RunResult, RunSpec
+from snnkart.app.protocol import DataKind, data_problem
 from snnkart.app.provenance import machine_info
 from snnkart.app.reporter import Reporter
 from snnkart.app.study_eval import deploy_median_seeds, eval_backend, evaluate
@@ -57,6 +58,7 @@ class StudyConfig(BaseModel):
 
     schema_: str = Field(STUDY_SCHEMA, alias="schema")
     name: str = "study"
+    data: DataKind = Field(description="tuning or reporting data (docs/results.md)")
     tracks: list[str] = Field(["small_S"], min_length=1, description="built-in names or files")
     envs: list[str] = Field(["grid", "gazebo", "steer"], min_length=1)
     policies: list[Literal["ann", "snn"]] = Field(["ann", "snn"], min_length=1)
@@ -95,6 +97,11 @@ def load_study(path: Path) -> StudyConfig:
         raise UsageError(f"cannot read the study config {path}: {exc.strerror or exc}") from exc
     except tomllib.TOMLDecodeError as exc:
         raise UsageError(f"{path}: not valid TOML: {exc}") from exc
+    if "data" not in data:
+        raise UsageError(
+            f'{path}: no data key: add data = "tuning" (seeds 1-100; small_S, big_S, ring, '
+            'hairpins) or data = "reporting" (seeds 101 and up; zigzag, bends), see docs/results.md'
+        )
     try:
         study = StudyConfig.model_validate(data)
     except ValidationError as exc:
@@ -103,6 +110,9 @@ def load_study(path: Path) -> StudyConfig:
         raise UsageError(f"{path}: {where}: {first['msg']}") from exc
     if study.schema_ != STUDY_SCHEMA:
         raise UsageError(f"{path}: schema {study.schema_!r}; this snnkart reads {STUDY_SCHEMA!r}")
+    problem = data_problem(study.data, study.seeds, study.tracks)
+    if problem:
+        raise UsageError(f'{path}: data = "{study.data}", but {problem}')
     return study
 
 
@@ -152,6 +162,9 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
             )  # fmt: skip
             name = "-".join([track_label(track), env, policy, *([variant] if variant else []),
                              f"s{seed}"])  # fmt: skip
+            problem = data_problem(study.data, [config.seed], [config.track])
+            if problem:  # a setting may change a run's seed or track
+                raise UsageError(f'{name}: the study\'s data is "{study.data}", but {problem}')
             if config.stop.finishes is not None and config.stop.finishes < study.finishes:
                 raise UsageError(
                     f"{name}: stop.finishes={config.stop.finishes} would stop runs before the "
@@ -247,8 +260,10 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
         "eval_backend": eval_backend(run),
         "eval_success_rate": evaluation["success_rate"],
         "eval_mean_return": evaluation["mean_return"], "eval_crashes": evaluation["crashes"],
+        "eval_mean_lap_time": evaluation.get("mean_lap_time"),
         "eval_stood_still": evaluation.get("stood_still"),
-        "eval_spikes_per_step": evaluation.get("spikes_per_step"), "curve": c,
+        "eval_spikes_per_step": evaluation.get("spikes_per_step"),
+        "eval_counts_per_step": evaluation.get("counts_per_step"), "curve": c,
     }  # fmt: skip
 
 

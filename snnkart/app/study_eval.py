@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.reporter import Reporter
+from snnkart.app.study_summary import counts_per_step
 from snnkart.app.worker import EvalJob, WorkerRequest
 from snnkart.errors import UsageError
 
@@ -133,4 +134,5 @@ def _summary(path: Path) -> dict[str, Any]:
     counts = data.get("counts")
     if counts and counts.get("env_steps"):
         summary["spikes_per_step"] = sum(counts["spikes"]) / counts["env_steps"]
+        summary["counts_per_step"] = counts_per_step(data)
     return summary

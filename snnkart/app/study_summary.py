@@ -45,6 +45,7 @@ def summarise(records: list[dict[str, Any]], study: Any) -> list[dict[str, Any]]
     out = []
     for (track, env, policy, variant), rs in cells.items():
         spikes = [r.get("eval_spikes_per_step") for r in rs]
+        synops = [chip_synops(r.get("eval_counts_per_step")) for r in rs]
         out.append({
             "track": track, "env": env, "policy": policy, "variant": variant,
             "seeds": [r["seed"] for r in rs],
@@ -52,6 +53,7 @@ def summarise(records: list[dict[str, Any]], study: Any) -> list[dict[str, Any]]
             "steps_to_finishes": spread([r["steps_to_finishes"] for r in rs]),
             "eval_success_rate": spread([r["eval_success_rate"] for r in rs]),
             "eval_spikes_per_step": spread(spikes) if None not in spikes else None,
+            "eval_synops_per_step": spread(synops) if None not in synops else None,
             "train_seconds": spread([r["train_seconds"] for r in rs]),
             "env_steps": sum(r["steps"] for r in rs),
         })  # fmt: skip
@@ -71,3 +73,33 @@ def pct_of_ann(ann: dict[str, Any] | None, snn: dict[str, Any]) -> float | None:
         return None
     a, s = ann["steps_to_finishes"]["median"], snn["steps_to_finishes"]["median"]
     return None if a is None or s is None else 100.0 * a / s
+
+
+def chip_synops(counts: dict[str, Any] | None) -> float | None:
+    """Synaptic operations per inference on the chip: between spiking layers, not the last
+    layer's fan-out to the host's readout; None without counts."""
+    return None if counts is None else sum(counts["synops_per_step"][:-1])
+
+
+def counts_per_step(deploy: dict[str, Any]) -> dict[str, Any]:
+    """A reference evaluation's counts per env step (one inference) and the network they were
+    counted on, from its ``deploy.json``: what ``snnkart report --sweep`` prices."""
+    manifest, counts = deploy["manifest"], deploy["counts"]
+    n = max(int(counts["env_steps"]), 1)
+    over = counts["pipeline_overhead"]
+    return {
+        "num_steps": manifest["num_steps"],
+        "sizes": [layer["size"] for layer in manifest["layers"]],
+        "network": deploy["network"],
+        "precision": deploy["precision"],
+        "encoding": manifest["encoding"],
+        "population": manifest.get("population"),
+        "action_mode": manifest["action_mode"],
+        "env_steps": counts["env_steps"],
+        "spikes_per_step": [s / n for s in counts["spikes"]],
+        "synops_per_step": [s / n for s in counts["synops"]],
+        "neuron_updates_per_step": [s / n for s in counts["neuron_updates"]],
+        "overhead_spikes_per_step": [s / n for s in over["spikes"]],
+        "overhead_synops_per_step": [s / n for s in over["synops"]],
+        "overhead_neuron_updates_per_step": [s / n for s in over["neuron_updates"]],
+    }

@@ -33,7 +33,10 @@ def report(
         ),
     ] = None,
     sweep: Annotated[
-        Path | None, typer.Option(help="a bench_sparsity JSON: the accuracy-energy figure")
+        Path | None,
+        typer.Option(
+            help="a study.json of SNN variants (studies/sparsity.toml): the accuracy-energy figure"
+        ),
     ] = None,
     step: Annotated[int, typer.Option(help="env step shown in the raster figure")] = 20,
     out: Annotated[

@@ -196,7 +196,7 @@ class SnnCounts:
 
     @classmethod
     def of_sweep(cls, run: dict[str, Any]) -> SnnCounts:
-        """A ``bench_sparsity`` run's record (per-step counts, as the deployment measured)."""
+        """A study run's counts per env step (``eval_counts_per_step`` in ``study.json``)."""
         net_info = run["network"]
         net = cls._sweep_network(run, net_info)
         L = len(net.sizes)

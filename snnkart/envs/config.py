@@ -185,7 +185,7 @@ class EnvConfig(_Frozen):
 GAZEBO_REWARD = {"stall": 0.01}
 """gazebo's reward defaults. Without the stall term, ANN seeds on small_S learned to park
 before a corner until the stand-still limit: seed 7 never finished in 300k steps, seed 10 not
-in 288k, seed 5 first at 266k (benchmarks/results/every-seed-0abeccf-small_S-partial.json).
+in 288k, seed 5 first at 266k (every-seed-0abeccf-small_S-partial.json).
 With it, all of seeds 1-10 finished, ANN and SNN (study-43bb29c-small_S-stall0.01 for seeds
 1-5, study-10f0252-gazebo-stall0.01-s6-10). A costlier, sooner stand-still ending instead did
 not do it (study-10f0252-gazebo-standstill2-100steps: an SNN seed never finished). The

@@ -62,7 +62,9 @@ def markdown(record: dict[str, Any], original: dict[str, dict[str, float]]) -> s
              f"episodes that started at the spawn) reached {n}. Evaluation: "
              f"{study['eval_episodes']} seeded episodes, ANNs in torch, SNNs exported to NIR on "
              "the numpy reference in fixed point. ✓/✗: better/worse than the original (one run "
-             "per cell; shown for small_S at 300 finishes).", ""]  # fmt: skip
+             "per cell; shown for small_S at 300 finishes). Data: "
+             f"{study.get('data', 'not declared')} (the results protocol, docs/results.md).",
+             ""]  # fmt: skip
     if any(r.get("eval_backend", "").startswith("torch (cuba") for r in record["runs"]):
         lines += ["Current-based LIF (cuba) SNNs with biases between their spiking layers are "
                   "evaluated in torch: Lava's LIF cannot run those biases.", ""]  # fmt: skip

@@ -179,22 +179,23 @@ POLICY_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
 
 
 ENV_POLICY_DEFAULTS: dict[tuple[str, str], dict[str, dict[str, Any]]] = {
+    # (The result files named below are in the checkout's benchmark results; see docs/results.md.)
     # Gazebo's turns take many steps of one key (each step changes the speed OR the turn
-    # rate): more exploration finds them (benchmarks/results/bench_learning-0861f38-*.json:
+    # rate): more exploration finds them (bench_learning-0861f38-*.json:
     # 3/3 seeds for the ANN at 0.02); grid and steer stay more random than they should at 0.02.
     ("gazebo", "ann"): {"ppo": {"learning_rate": 1e-3, "ent_coef": 0.02}},
     # The gazebo SNN learned slower than the ANN and finished in 2 of seeds 1-3 with 8 envs x
     # 256 steps; the same batch from 16 envs x 128 steps (more, shorter episodes' worth of
     # starts per update) met the targets in 5 of seeds 1-5, where 8 envs met them in 4 and
-    # 32 x 64 failed seed 1 (benchmarks/results/bench_learning-*-gazebo-snn-envs.json).
+    # 32 x 64 failed seed 1 (bench_learning-*-gazebo-snn-envs.json).
     ("gazebo", "snn"): {"ppo": {"ent_coef": 0.02, "num_envs": 16, "rollout_steps": 128}},
     # The steer ANN stopped short of the first hairpin in 2 of 3 seeds at 0.01 and finished
-    # it in both at 0.02 (benchmarks/results/bench_learning-54afbe7-steer-ann-ent0.02.json;
+    # it in both at 0.02 (bench_learning-54afbe7-steer-ann-ent0.02.json;
     # 3/3 in bench_learning-d87ccc1).
     ("steer", "ann"): {"ppo": {"ent_coef": 0.02}},
     # Grid's impulse actions explore well, and a large entropy bonus leaves a mixture whose
     # argmax clips corners (eval 75-85 % in 4 of 6 runs at 0.01; 90-100 % in all 6 at 0:
-    # benchmarks/results/bench_learning-d87ccc1 and -ec5cb07). But with none, the ANN got
+    # bench_learning-d87ccc1 and -ec5cb07). But with none, the ANN got
     # stuck wandering in 1 of 5 seeds (bench_learning-0b2f812); a small floor, 0.005, found
     # the first finish in 10 of 10 seeds, eval 78-96 % (study-6f4d45b-grid-ent0.005). The
     # SNN learned in 5 of 5 seeds without one, sooner than in 10 of 10 with it.

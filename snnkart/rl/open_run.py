@@ -32,7 +32,7 @@ class RunSchedule:
     """The length the run was training for (the checkpoint's config; ``config.toml`` for a
     checkpoint without one)."""
     batch_size: int
-    """Env steps per iteration (``ppo.num_envs * ppo.num_steps``)."""
+    """Env steps per iteration (``ppo.num_envs * ppo.rollout_steps``)."""
     iteration: int
     global_step: int
     learning_rate: float | None
