@@ -30,6 +30,7 @@ from typer.testing import CliRunner
 from snnkart.backends.base import split_window
 from snnkart.backends.lava_params import lava_spec
 from snnkart.backends.lava_sim import LavaSimPredictor, LavaWorker
+from snnkart.backends.loading import load_chain
 from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
 from snnkart.backends.quantize import (
     DECAY_UNITY,
@@ -39,10 +40,10 @@ from snnkart.backends.quantize import (
     check_lava_compatible,
     quantize,
 )
-from snnkart.backends.reference import ChainSimulator, NIRReference, load_chain
+from snnkart.backends.reference import ChainSimulator, NIRReference
 from snnkart.cli import app
 from snnkart.contract.manifest import manifest_path
-from snnkart.eval.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
+from snnkart.eval.deploy import DEPLOY_SCHEMA, DeployRequest, make_policy_env, run_deploy
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.ppo import normalize_obs
@@ -182,7 +183,7 @@ def test_lava_is_bit_exact_with_the_same_arithmetic_reference(
     input_trains: set[bytes] = set()  # rate encoding: the host's input spike trains
     steps = episodes = 0
     try:
-        with LavaSimPredictor(nir_path, precision) as lava:
+        with LavaSimPredictor(nir_path, mode) as lava:
             while steps < PARITY_STEPS:
                 obs, _ = env.reset(seed=100 + episodes)
                 episodes += 1
@@ -275,7 +276,7 @@ def test_lava_float_agrees_with_torch_on_recorded_observations(
     records = _record_torch(run, TORCH_STEPS)
     same = flips = neuron_steps = 0
     flips_per_layer = np.zeros(2, dtype=np.int64)
-    with LavaSimPredictor(nir_path, "float") as lava:
+    with LavaSimPredictor(nir_path, "float64") as lava:
         sizes = lava.chain.sizes
         for obs, torch_action, torch_spikes in records:
             window, out = lava.step(obs)
@@ -989,7 +990,7 @@ def test_cli_deploy_lava_fixed_writes_the_record(exported: Path, tmp_path: Path)
     assert record["timing"]["startup_s"] > 0 and record["timing"]["ms_per_env_step"] > 0
     assert f"0 of {counts['env_steps']} env steps differ" in " ".join(result.output.split())
     # the same arithmetic in numpy drives the same episode with the same counts
-    ref = run_deploy(exported, "nir-ref", "fixed", episodes=1)
+    ref = run_deploy(DeployRequest(exported, "nir-ref", "fixed", episodes=1))
     assert ref["counts"] == counts
     assert ref["episodes"][0]["length"] == episode["length"]
     assert ref["summary"] == record["summary"]
@@ -1013,7 +1014,7 @@ def test_cli_eval_run_dir_on_the_reference(
     assert record["counts"]["env_steps"] == sum(e["length"] for e in record["episodes"])
     assert record["counts"]["pipeline_overhead"]["neuron_updates"] == [0, 0]
     # the run directory was exported on the fly: the same policy as the exported file
-    direct = run_deploy(exported, "nir-ref", "float32", episodes=2)
+    direct = run_deploy(DeployRequest(exported, "nir-ref", "float32", episodes=2))
     assert direct["episodes"] == record["episodes"]
     assert direct["counts"] == record["counts"]
     assert not any(runs["steer"].glob("eval-*"))  # --out was honoured
@@ -1062,7 +1063,7 @@ def test_quantize_bias_fits_or_is_refused(exported: Path) -> None:
 
 
 def test_backend_registry_names_one_arithmetic_per_precision(exported: Path) -> None:
-    from snnkart.backends.base import arithmetic_for, open_backend
+    from snnkart.backends.registry import arithmetic_for, open_backend
     from snnkart.errors import DeployError
 
     assert arithmetic_for("lava-sim", "float") == "float64"
