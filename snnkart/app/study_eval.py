@@ -18,7 +18,7 @@ from snnkart.app.reporter import Reporter
 from snnkart.errors import UsageError
 
 if TYPE_CHECKING:
-    from snnkart.app.study import Run, StudyConfig
+    from snnkart.app.study_types import Run, StudyConfig
 
 DEPLOY_DIR = "study-deploy-lava-sim-fixed"
 
