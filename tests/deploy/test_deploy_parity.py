@@ -22,16 +22,18 @@ from deploy_helpers import (
     TORCH_RUNS,
     TORCH_STEPS,
 )
+from tiny_runs import train_tiny
 from typer.testing import CliRunner
 
-from snnkart.backends.base import split_window
+from snnkart.backends.base import SpikeCounts, split_window
 from snnkart.backends.lava_sim import LavaSimPredictor
 from snnkart.backends.reference import NIRReference
 from snnkart.cli import app
 from snnkart.eval.deploy import make_policy_env
+from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.ppo import normalize_obs
-from snnkart.rl.trained import LoadedRun, TorchPredictor
+from snnkart.rl.trained import LoadedRun, TorchPredictor, load_run
 
 
 def test_split_window_on_a_hand_built_raster() -> None:
@@ -62,6 +64,32 @@ def test_split_window_on_a_hand_built_raster() -> None:
     np.testing.assert_array_equal(flat.logical, raster[:T])
     assert flat.spikes.tolist() == [4, 4] and flat.overhead_spikes.tolist() == [0, 0]
     assert flat.last_counts.tolist() == [2, 1, 1]
+
+
+def test_split_window_of_one_step_with_graded_spikes() -> None:
+    """What the next engines return: a window of one logical step plus the pipeline depth, and
+    graded spikes (an integer payload, 0 = no message). Counted by messages, not values; the
+    payload bits are kept in memory but not written to deploy.json."""
+    sizes = (2, 3)
+    raster = np.array(
+        [  # layer 0 | layer 1
+            [3, 0, 0, 5, 0],  # row 0: layer 0 step 0; layer 1 fill (overhead)
+            [0, 7, 2, 0, -1],  # row 1: layer 0 drain (overhead); layer 1 step 0
+        ],
+        dtype=np.int32,
+    )
+    w = split_window(raster, sizes, 1, depth=1, payload_bits=8)
+    np.testing.assert_array_equal(w.logical, [[3, 0, 2, 0, -1]])
+    assert w.spikes.tolist() == [1, 2] and w.overhead_spikes.tolist() == [1, 1]
+    assert w.payload_bits.tolist() == [8, 16]
+    assert w.last_counts.tolist() == [2, 0, -1]
+    assert w.neuron_updates.tolist() == [2, 3] and w.overhead_neuron_updates.tolist() == [2, 3]
+    counts = SpikeCounts(2)
+    counts.add(w, (3, 4))
+    assert counts.payload_bits.tolist() == [8, 16] and counts.synops.tolist() == [3, 8]
+    assert "payload" not in json.dumps(counts.as_dict())
+    with pytest.raises(ValueError, match=r"has 1 rows \(no pipeline\) or 2, not 2 \(depth 0\)"):
+        split_window(raster, sizes, 1, depth=0)
 
 
 # -- 1. Lava against the same-arithmetic reference, bit for bit -----------------------------------
@@ -145,6 +173,68 @@ def test_lava_is_bit_exact_with_the_same_arithmetic_reference(
     if name == "steer-rate":
         assert len(input_trains) == steps  # fresh spike trains every env step
     print(f"\n{name} {precision}: {steps} env steps, {episodes} episodes, counts {ref_counts}")
+
+
+@pytest.fixture(scope="module")
+def cuba_policy(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A tiny steer CubaLIF policy (alpha 0.8: a current decay fixed point holds only to
+    du = 818), its second layer driven harder and its readout drawn at random (seeded) so that
+    both layers spike and the actions vary; exported."""
+    base = tmp_path_factory.mktemp("cuba")
+    sets = ["snn.neuron=cuba", "snn.alpha=0.8"]
+    run = load_run(train_tiny(base / "run", "steer", "snn", extra_sets=sets))
+    policy = run.policy
+    assert isinstance(policy, SNNPolicy)
+    with torch.no_grad():
+        policy.snn.fc2.weight.mul_(3.0)
+        readout = policy.snn.readout.weight
+        readout.copy_(torch.randn(readout.shape, generator=torch.Generator().manual_seed(1)))
+    nir_path, _ = export_nir(run, base / "policy.nir")
+    return nir_path
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(180)
+def test_lava_fixed_runs_a_cubalif_policy_bit_exact_in_closed_loop(cuba_policy: Path) -> None:
+    """Lava's bit-accurate CubaLIF (its current decay from the quantised du) against the fixed
+    reference, window for window over several episodes: an off-by-one in either's current
+    decay shows up as differing rasters."""
+    reference = NIRReference(cuba_policy, "fixed")
+    assert reference.fixed is not None
+    assert [layer.cuba for layer in reference.chain.layers] == [True, True]
+    assert [q.du for q in reference.fixed.layers] == [818, 818]
+    env = make_policy_env(reference.manifest, None, None)
+    mismatches: list[int] = []
+    actions: set[str] = set()
+    steps = episodes = 0
+    try:
+        with LavaSimPredictor(reference.policy, "fixed") as lava:
+            while steps < PARITY_STEPS:
+                obs, _ = env.reset(seed=200 + episodes)
+                episodes += 1
+                done = False
+                while not done and steps < PARITY_STEPS:
+                    ref_window, ref_out = reference.step(obs)
+                    lava_window, lava_out = lava.step(obs)
+                    if not np.array_equal(lava_window.raster, ref_window.raster):
+                        mismatches.append(steps)
+                    np.testing.assert_array_equal(lava_out, ref_out)
+                    action = reference.codec.decode(ref_out)
+                    actions.add(repr(action))
+                    obs, _, terminated, truncated, _ = env.step(action)
+                    done = terminated or truncated
+                    steps += 1
+            lava_counts = lava.counts.as_dict()
+    finally:
+        env.close()
+    assert not mismatches, (
+        f"{len(mismatches)} of {steps} windows differ from the fixed reference (first at env "
+        f"step {mismatches[0]})"
+    )
+    ref_counts = reference.counts.as_dict()
+    assert lava_counts == ref_counts and ref_counts["env_steps"] == PARITY_STEPS
+    assert episodes >= 2 and all(x > 0 for x in ref_counts["spikes"]), ref_counts
+    assert len(actions) >= 2, actions
 
 
 # -- 2. Lava float against the torch policy -------------------------------------------------------
