@@ -187,3 +187,26 @@ def test_cli_eval_run_dir_on_the_reference(
         env.close()
     assert total == record["episodes"][0]["length"]
     assert agree >= 0.99 * total
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["deploy", "{nir}", "--episodes", "0"], "--episodes must be >= 1, got 0"),
+        (["eval", "{nir}", "--backend", "nir-ref", "--episodes", "0"], "--episodes must be >= 1"),
+        (["eval", "{nir}", "--backend", "loihi"], "unknown backend 'loihi'; choose torch, nir-ref"),
+        (["eval", "{nir}", "--backend", "lava-sim", "--precision", "half"], "is float or fixed"),
+    ],
+    ids=["deploy-episodes", "eval-episodes", "eval-backend", "eval-precision"],
+)
+def test_the_deploy_request_is_refused_in_one_line(
+    args: list[str], message: str, exported: Path, tmp_path: Path
+) -> None:
+    """The CLI builds one DeployRequest, checked once where it is made: nothing is written."""
+    out = tmp_path / "out"
+    argv = [a.format(nir=exported) for a in args] + ["--out", str(out)]
+    result = CliRunner().invoke(app, argv)
+    assert result.exit_code == 2, result.output
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], lines
+    assert not out.exists()
