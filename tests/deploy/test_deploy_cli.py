@@ -26,7 +26,7 @@ from snnkart.contract.manifest import manifest_path
 from snnkart.eval.deploy import DEPLOY_SCHEMA, DeployRequest, run_deploy
 from snnkart.rl.trained import TorchPredictor, load_run
 
-# -- 6. bad input on the command line -------------------------------------------------------------
+# -- bad input on the command line -------------------------------------------------------------
 
 
 def _edit_manifest(path: Path, edit: Any) -> None:
@@ -107,7 +107,7 @@ def test_cli_deploy_rejects_bad_input(case: str, exported: Path, tmp_path: Path)
     assert elapsed < 20, f"{case}: took {elapsed:.1f} s to refuse"
 
 
-# -- 9. the command line, successful runs ---------------------------------------------------------
+# -- the command line, successful runs ---------------------------------------------------------
 
 
 @pytest.mark.lava

@@ -24,7 +24,7 @@ from snnkart.backends.quantize import (
 )
 from snnkart.backends.reference import ChainSimulator
 
-# -- 4. a NIR graph from outside snnkart ----------------------------------------------------------
+# -- a NIR graph from outside snnkart ----------------------------------------------------------
 
 
 def _foreign_lif_graph() -> tuple[nir.NIRGraph, dict[str, np.ndarray]]:

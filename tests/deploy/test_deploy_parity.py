@@ -92,7 +92,7 @@ def test_split_window_of_one_step_with_graded_spikes() -> None:
         split_window(raster, sizes, 1, depth=0)
 
 
-# -- 1. Lava against the same-arithmetic reference, bit for bit -----------------------------------
+# -- Lava against the same-arithmetic reference, bit for bit -----------------------------------
 
 
 @pytest.mark.lava
@@ -237,7 +237,7 @@ def test_lava_fixed_runs_a_cubalif_policy_bit_exact_in_closed_loop(cuba_policy: 
     assert len(actions) >= 2, actions
 
 
-# -- 2. Lava float against the torch policy -------------------------------------------------------
+# -- Lava float against the torch policy -------------------------------------------------------
 
 
 def _record_torch(run: LoadedRun, steps: int) -> list[tuple[np.ndarray, Any, np.ndarray]]:
@@ -305,7 +305,7 @@ def test_lava_float_agrees_with_torch_on_recorded_observations(
     assert flips <= 0.001 * neuron_steps  # float64 vs float32 rounding: rare threshold flips
 
 
-# -- 3. counts, without Lava ----------------------------------------------------------------------
+# -- counts, without Lava ----------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("mode", ["float32", "float64", "fixed"])

@@ -28,7 +28,7 @@ from snnkart.backends.quantize import (
 )
 from snnkart.rl.trained import LoadedRun
 
-# -- 5. quantisation ------------------------------------------------------------------------------
+# -- quantisation ------------------------------------------------------------------------------
 
 
 def _with_layer(chain: ChainNetwork, i: int, **changes: Any) -> ChainNetwork:

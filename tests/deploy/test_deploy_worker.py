@@ -59,7 +59,7 @@ def test_a_stopped_lava_worker_leaves_no_open_files_and_is_stopped_once(
         worker.window(np.zeros((4, 8)))
 
 
-# -- 7. Lava missing ------------------------------------------------------------------------------
+# -- Lava missing ------------------------------------------------------------------------------
 
 
 @pytest.mark.lava
@@ -90,7 +90,7 @@ def test_deploy_without_lava_fails_clearly(exported: Path, tmp_path: Path) -> No
     assert elapsed < 60
 
 
-# -- 8. Ctrl-C to the process group mid-episode ---------------------------------------------------
+# -- Ctrl-C to the process group mid-episode ---------------------------------------------------
 
 
 @pytest.mark.lava
