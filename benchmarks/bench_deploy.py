@@ -26,8 +26,8 @@ import numpy as np
 import torch
 
 from benchmarks.common import add_out_argument, machine_info, output_path
-from snnkart.backends.lava_sim import LavaSimPredictor
 from snnkart.backends.reference import NIRReference
+from snnkart.backends.registry import open_backend
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.config import load_config
 from snnkart.rl.ppo import Trainer
@@ -96,7 +96,7 @@ def main() -> None:
             rows[f"nir-ref {mode}"] = {"seconds": seconds}
         for precision in ("float", "fixed"):
             t0 = time.perf_counter()
-            lava = LavaSimPredictor(nir_path, precision)
+            lava = open_backend(nir_path, "lava-sim", precision)
             try:
                 lava.predict(observations[0])  # the first step includes Lava's warm-up
                 startup = time.perf_counter() - t0

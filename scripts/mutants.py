@@ -11,9 +11,10 @@ when that run fails. The script exits non-zero if any mutant survives.
 - ``final-values-zero``: the PPO time-limit bootstrap drops ``gamma * V(final_obs)``
   (``Rollout.final_values`` returns zeros); guarded by ``tests/test_gae.py``.
 - ``deploy-mismatch``: Lava returns one flipped spike in every window from the 6th on
-  (``LavaSimPredictor.step``); guarded by the parity tests in ``tests/test_deploy.py``.
+  (``LavaSimPredictor.step``); guarded by the parity tests in ``tests/deploy/``.
 - ``parity-guard-off``: ``snnkart deploy`` no longer fails on a parity mismatch
-  (``snnkart.eval.deploy.check_parity`` does nothing); guarded by ``tests/test_deploy.py``.
+  (``snnkart.eval.deploy.check_parity`` does nothing); guarded by
+  ``tests/deploy/test_deploy_parity.py``.
 - ``sb3-constant-lr``: ``bench_train`` gives Stable-Baselines3 a constant learning rate while
   snnkart anneals it (as it did before issue 13); guarded by ``tests/test_benchmarks.py``.
 """
@@ -29,8 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 MUTANTS = {
     "host-current-halved": ["tests/test_fixed_point.py"],
     "final-values-zero": ["tests/test_gae.py"],
-    "deploy-mismatch": ["tests/test_deploy.py", "-k", "bit_exact or cli_deploy"],
-    "parity-guard-off": ["tests/test_deploy.py", "-k", "parity_mismatch"],
+    "deploy-mismatch": ["tests/deploy", "-k", "bit_exact or cli_deploy"],
+    "parity-guard-off": ["tests/deploy/test_deploy_parity.py", "-k", "parity_mismatch"],
     "sb3-constant-lr": ["tests/test_benchmarks.py", "-k", "bench_train"],
 }
 

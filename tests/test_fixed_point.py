@@ -29,8 +29,9 @@ import pytest
 import torch
 from tiny_runs import train_tiny
 
+from snnkart.backends.loading import load_chain
 from snnkart.backends.quantize import ACT_SHIFT, DECAY_UNITY, HOST_CURRENT_MAX, quantize
-from snnkart.backends.reference import NIRReference, load_chain
+from snnkart.backends.reference import NIRReference
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.ppo import normalize_obs
 from snnkart.rl.trained import LoadedRun, load_run

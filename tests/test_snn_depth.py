@@ -16,8 +16,8 @@ import pytest
 import torch
 from tiny_runs import train_tiny
 
-from snnkart.backends.lava_sim import LavaSimPredictor
 from snnkart.backends.reference import NIRReference
+from snnkart.backends.registry import open_backend
 from snnkart.contract.manifest import Manifest, manifest_path
 from snnkart.eval.deploy import make_policy_env
 from snnkart.export.nir_export import export_nir
@@ -130,7 +130,7 @@ def test_lava_matches_the_reference_bit_for_bit(
     env = make_policy_env(reference.manifest, None, None)
     n = len(DEPTHS[depth])
     try:
-        with LavaSimPredictor(nir_path, arithmetic) as lava:
+        with open_backend(nir_path, "lava-sim", arithmetic) as lava:
             obs, _ = env.reset(seed=11)
             for step in range(80):
                 ref_window, ref_out = reference.step(obs)

@@ -3,40 +3,33 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from snnkart.app.reporter import Reporter
 from snnkart.errors import DeployWriteError, ParityError
 
+if TYPE_CHECKING:
+    from snnkart.eval.request import DeployRequest
 
-def run_deploy_reported(
-    nir_file: Path,
-    backend: str,
-    precision: str,
-    episodes: int,
-    seed: int,
-    env: str | None,
-    track: str | None,
-    out: Path | None,
-    reporter: Reporter,
-) -> dict[str, Any]:
+
+def run_deploy_reported(request: DeployRequest, reporter: Reporter) -> dict[str, Any]:
     """:func:`snnkart.eval.deploy.run_deploy` with progress, then its summary. A parity
     mismatch or a failed write is reported with the summary, then raised."""
     from snnkart.eval.deploy import run_deploy
 
+    label = f"{request.backend} episodes"
     try:
-        with reporter.progress(f"{backend} episodes", episodes, steps="env steps") as task:
+        with reporter.progress(label, request.episodes, steps="env steps") as task:
             record = run_deploy(
-                nir_file, backend, precision, episodes, seed, env, track, out,
-                on_episode=lambda r: task.advance(), on_step=lambda e: task.step(),
-            )  # fmt: skip
+                request, on_episode=lambda r: task.advance(), on_step=lambda e: task.step()
+            )
     except ParityError as exc:
-        report_summary(exc.record, out, reporter)
+        report_summary(exc.record, request.out, reporter)
         raise
     except DeployWriteError as exc:
         report_summary(exc.record, None, reporter)
         raise
-    report_summary(record, out, reporter)
+    report_summary(record, request.out, reporter)
     return record
 
 

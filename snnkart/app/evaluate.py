@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import contextlib
 import tempfile
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from snnkart import faults
 from snnkart.app.reporter import Reporter
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.envs.tracks import track_label
 from snnkart.errors import UsageError
+
+if TYPE_CHECKING:
+    from snnkart.eval.request import DeployRequest
 
 
 def _fmt(value: float | None) -> str:
@@ -136,32 +140,22 @@ def _describe(summary: Any) -> str:
 
 
 def run_eval_exported(
-    target: Path,
-    backend: str,
-    precision: str,
-    episodes: int,
-    seed: int,
-    checkpoint: Path | None,
-    out: Path | None,
-    reporter: Reporter,
-    env: str | None = None,
-    track: str | None = None,
+    target: Path, checkpoint: Path | None, request: DeployRequest, reporter: Reporter
 ) -> dict[str, Any]:
     """Evaluate on a spiking backend: ``target`` is a NIR file, or a run directory exported to a
-    temporary NIR file first; results go to ``out`` or ``eval-<backend>-<precision>/``."""
+    temporary NIR file first; results go to the request's ``out`` or
+    ``eval-<backend>-<precision>/`` beside the target."""
     from snnkart.app.deploy import run_deploy_reported
 
-    if backend not in ("nir-ref", "lava-sim"):
-        raise UsageError(f"unknown backend {backend!r}; choose torch, nir-ref or lava-sim")
+    name = f"eval-{request.backend}-{request.precision}"
     with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
         if target.is_dir():
             from snnkart.export.nir_export import export_nir
             from snnkart.rl.trained import load_run
 
             nir_file, _ = export_nir(load_run(target, checkpoint), Path(tmp) / "policy.nir")
-            default_out = target / f"eval-{backend}-{precision}"
+            default_out = target / name
         else:
-            nir_file, default_out = target, target.parent / f"eval-{backend}-{precision}"
-        return run_deploy_reported(
-            nir_file, backend, precision, episodes, seed, env, track, out or default_out, reporter
-        )
+            nir_file, default_out = target, target.parent / name
+        out = request.out or default_out
+        return run_deploy_reported(replace(request, nir_file=nir_file, out=out), reporter)

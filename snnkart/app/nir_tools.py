@@ -15,12 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from snnkart.backends.base import Arithmetic, arithmetic_for
+from snnkart.backends.base import Arithmetic
 from snnkart.backends.graph_info import GraphInfo, describe_graph
+from snnkart.backends.loading import read_graph
 from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
 from snnkart.backends.open_loop import OpenLoopResult, check_inputs, compare, run_open_loop
 from snnkart.backends.quantize import quantize
-from snnkart.backends.reference import read_graph
+from snnkart.backends.registry import arithmetic_for
 from snnkart.contract.manifest import Manifest, manifest_path
 from snnkart.errors import DeployError, NIRFileError, ParityError
 from snnkart.io import write_bytes

@@ -154,14 +154,16 @@ def _deploy(
     nir_path: Path, out: Path, lava_episodes: int, reporter: Reporter
 ) -> dict[str, dict[str, Any]]:
     from snnkart.app.deploy import run_deploy_reported
+    from snnkart.eval.request import DeployRequest
 
     reporter.message(f"[5/6] deploying on lava-sim ({lava_episodes} episodes fixed, 2 float)")
     records = {}
     for precision, episodes in (("fixed", lava_episodes), ("float", 2)):
-        records[precision] = run_deploy_reported(
-            nir_path, "lava-sim", precision, episodes, EVAL_SEED, None, None,
-            out / f"deploy-lava-sim-{precision}", reporter,
+        request = DeployRequest(
+            nir_path, "lava-sim", precision, episodes, EVAL_SEED,
+            out=out / f"deploy-lava-sim-{precision}",
         )  # fmt: skip
+        records[precision] = run_deploy_reported(request, reporter)
     return records
 
 

@@ -10,7 +10,7 @@ from snnkart.app.reporter import Reporter
 
 def run_plot_raster(nir_file: Path, step: int, seed: int, track: str | None, out: Path,
                     reporter: Reporter) -> Path:  # fmt: skip
-    from snnkart.backends.reference import load_chain
+    from snnkart.backends.loading import load_chain
     from snnkart.eval.trace import trace_step
     from snnkart.io import write_bytes
     from snnkart.report import plots

@@ -106,7 +106,7 @@ def _policy(policy: Path, backend: str, precision: str) -> tuple[Any, Any]:
         env = run.config.make_env(track=run.track)
         predictor: Any = TorchPredictor(run)
     else:
-        from snnkart.backends.base import open_backend
+        from snnkart.backends.registry import open_backend
         from snnkart.eval.deploy import make_policy_env
 
         if policy.suffix != ".nir":

@@ -15,7 +15,7 @@ from snnkart.app.worker import EvalJob, WorkerRequest
 from snnkart.errors import UsageError
 
 if TYPE_CHECKING:
-    from snnkart.app.study import Run, StudyConfig
+    from snnkart.app.study_types import Run, StudyConfig
 
 DEPLOY_DIR = "study-deploy-lava-sim-fixed"
 

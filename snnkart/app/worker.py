@@ -98,8 +98,12 @@ def run(request: WorkerRequest) -> int:
     if request.backend == "torch":
         run_eval(run_dir, request.episodes, request.seed, None, False, None, out, reporter)
     else:
-        run_eval_exported(run_dir, request.backend, request.precision, request.episodes,
-                          request.seed, None, out, reporter)  # fmt: skip
+        from snnkart.eval.request import DeployRequest
+
+        deploy = DeployRequest(
+            run_dir, request.backend, request.precision, request.episodes, request.seed, out=out
+        )
+        run_eval_exported(run_dir, None, deploy, reporter)
     return 0
 
 

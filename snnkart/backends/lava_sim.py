@@ -13,7 +13,7 @@ runs in its own session, so a terminal's Ctrl-C reaches only this process, which
 the worker cleanly (see :class:`LavaWorker` for every way out); if this process dies, the
 worker sees its input end and closes itself.
 
-Sharp edges: ``precision="fixed"`` runs the post-training quantisation of
+Sharp edges: the fixed arithmetic runs the post-training quantisation of
 :mod:`snnkart.backends.quantize`; 1 to 3 spiking layers; snntorch-style neurons only.
 """
 
@@ -35,17 +35,15 @@ from typing import Any
 import numpy as np
 
 from snnkart import faults
-from snnkart.backends.base import PRECISIONS as BACKEND_PRECISIONS
-from snnkart.backends.base import Arithmetic, SpikeCounts, WindowResult, split_window
-from snnkart.backends.host import HostCodec
+from snnkart.backends.backend import Backend, Engine
+from snnkart.backends.base import Arithmetic
 from snnkart.backends.lava_params import LavaSpec, lava_spec
 from snnkart.backends.lava_worker import HEADER, write_msg
-from snnkart.backends.quantize import quantize
-from snnkart.backends.reference import load_chain
+from snnkart.backends.loading import LoadedPolicy
+from snnkart.backends.quantize import check_lava_compatible
 from snnkart.errors import BackendError
 from snnkart.faults import fault_point
 
-PRECISIONS = tuple(BACKEND_PRECISIONS["lava-sim"])  # "float", "fixed"
 STARTUP_TIMEOUT = 120.0
 WINDOW_TIMEOUT = 90.0
 CLOSE_TIMEOUT = 4.0
@@ -59,7 +57,9 @@ class LavaBackendError(BackendError):
 
 
 class LavaWorker:
-    """A running worker process: one compiled network, one Lava runtime.
+    """A running worker process: one compiled network, one Lava runtime; the ``lava-sim``
+    :class:`~snnkart.backends.backend.Engine` (its state, the runtime, runs on from window to
+    window and from episode to episode: every layer is reset inside each window).
 
     Every way out stops the whole worker session (the worker and the Lava processes it forked):
 
@@ -74,7 +74,13 @@ class LavaWorker:
       caller's cleanup): the same, from an ``atexit`` hook.
     """
 
+    payload_bits = 0  # binary spikes
+    is_reference = False
+
     def __init__(self, spec: LavaSpec) -> None:
+        self.arithmetic: Arithmetic = spec.arithmetic
+        self.steps = spec.num_steps
+        self.depth = len(spec.sizes) - 1  # one step per Dense
         self.stderr = tempfile.TemporaryFile()
         self._tail = ""  # the last lines of stderr, kept when the file is closed
         env = {**os.environ, "PYTHONUNBUFFERED": "1", "SNNKART_FAULT_PGID": str(os.getpgrp())}
@@ -199,6 +205,9 @@ class LavaWorker:
             raise LavaBackendError(f"Lava worker: unexpected reply {kind!r}")
         return np.asarray(raster, dtype=bool)
 
+    def reset(self) -> None:
+        """Nothing to forget at an episode's start: every layer is reset inside each window."""
+
     def close(self) -> None:
         """Ask the worker to stop its Lava runtime; kill its session if it does not."""
         if self.closed:
@@ -282,53 +291,23 @@ def _stop_live_workers() -> None:
         worker.kill()
 
 
-class LavaSimPredictor:
-    """Predictor running the exported policy on Lava; ``step`` also returns the window."""
+class LavaSimPredictor(Backend):
+    """The ``lava-sim`` backend: the policy's spiking layers in a Lava worker
+    (``arithmetic``: float64, Lava's floating-point models, or fixed, its bit-accurate ones);
+    ``step`` also returns the window."""
 
     name = "lava-sim"
 
-    def __init__(self, nir_path: str | Path, precision: str = "fixed", seed: int = 0) -> None:
-        if precision not in PRECISIONS:
-            raise ValueError(f"unknown precision {precision!r}; choose float or fixed")
-        self.chain, self.manifest = load_chain(nir_path)
-        self.precision = precision  # the user's word; the arithmetic it means:
-        self.arithmetic: Arithmetic = "fixed" if precision == "fixed" else "float64"
-        self.fixed = quantize(self.chain) if precision == "fixed" else None
-        self.codec = HostCodec(self.chain, self.manifest, self.arithmetic, self.fixed, seed)
-        self.T = self.manifest.num_steps
-        self.counts = SpikeCounts(len(self.chain.layers))
-        if self.fixed is None:
-            from snnkart.backends.quantize import check_lava_compatible
-
-            check_lava_compatible(self.chain)
-        spec = lava_spec(self.chain, self.T, self.arithmetic, self.fixed)
-        self.worker = LavaWorker(spec)
+    def __init__(
+        self, source: str | Path | LoadedPolicy, arithmetic: Arithmetic = "fixed", seed: int = 0
+    ) -> None:
+        if arithmetic not in ("float64", "fixed"):
+            raise ValueError(f"Lava runs float64 or fixed, not {arithmetic!r}")
+        super().__init__(source, arithmetic, seed)
         self.startup_s = float(self.worker.info["startup_s"])
 
-    def reset(self) -> None:
-        """Nothing to forget: every layer is reset at the start of each window."""
-
-    def step(self, obs: np.ndarray) -> tuple[WindowResult, np.ndarray]:
-        raster = self.worker.window(self.codec.encode(obs))
-        window = split_window(raster, self.chain.sizes, self.T)
-        self.counts.add(window, self.chain.fan_out)
-        last = window.logical[:, -self.chain.sizes[-1] :]
-        return window, self.codec.readout_spikes(last)
-
-    def predict(self, obs: np.ndarray) -> Any:
-        return self.codec.decode(self.step(obs)[1])
-
-    def close(self) -> None:
-        self.worker.close()
-
-    def __enter__(self) -> LavaSimPredictor:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if exc[0] is None:
-            self.close()
-        else:
-            try:
-                self.close()
-            except (LavaBackendError, subprocess.TimeoutExpired):
-                pass  # the worker was killed; the original error matters more
+    def open_engine(self, policy: LoadedPolicy, arithmetic: Arithmetic) -> Engine:
+        if self.fixed is None:
+            check_lava_compatible(policy.chain)
+        self.worker = LavaWorker(lava_spec(policy.chain, policy.num_steps, arithmetic, self.fixed))
+        return self.worker

@@ -28,23 +28,15 @@ need snntorch-style layers (uniform beta and threshold, reset to 0, no leak term
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from snnkart.backends.base import (
-    ARITHMETICS,
-    Arithmetic,
-    SpikeCounts,
-    WindowResult,
-    check_arithmetic,
-    split_window,
-)
-from snnkart.backends.host import HostCodec
+from snnkart.backends.backend import Backend, Engine
+from snnkart.backends.base import ARITHMETICS, Arithmetic, check_arithmetic
 from snnkart.backends.lava_params import lava_layers
-from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
+from snnkart.backends.loading import LoadedPolicy
+from snnkart.backends.network import ChainNetwork
 from snnkart.backends.quantize import (
     ACT_SHIFT,
     DECAY_UNITY,
@@ -53,22 +45,34 @@ from snnkart.backends.quantize import (
     check_lava_compatible,
     quantize,
 )
-from snnkart.contract.manifest import Manifest, ManifestError, manifest_path
+from snnkart.contract.manifest import ManifestError
 from snnkart.errors import NIRFileError
 
 
 class _Simulator:
-    """A chain's spiking layers in one arithmetic: ``window(current)`` takes the first layer's
-    input current ``[T, n1]`` (from :class:`HostCodec`) and returns the window's raster."""
+    """A chain's spiking layers in one arithmetic, an :class:`~snnkart.backends.backend.Engine`:
+    ``window(current)`` takes the first layer's input current ``[T, n1]`` (from the host codec)
+    and returns the window's raster, ``[T + depth, sum(sizes)]``."""
 
     arithmetic: Arithmetic
+    depth = 0
+    payload_bits = 0  # binary spikes
+    is_reference = True
 
     def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
         self.chain = chain
         self.T = num_steps
+        self.steps = num_steps
         self.sizes = chain.sizes
         self.L = len(self.sizes) - 1
         self.offsets = np.cumsum((0, *self.sizes))
+
+    def reset(self) -> None:
+        """Nothing to forget at an episode's start: every layer is reset inside each window
+        (a Lava pipeline's time and Dense buffers run on, as they do on Lava)."""
+
+    def close(self) -> None:
+        """Nothing to stop: the reference runs in this process."""
 
     def window(self, current: np.ndarray) -> np.ndarray:
         if current.shape != (self.T, self.sizes[0]):
@@ -154,6 +158,7 @@ class _LavaPipeline(_Simulator):
     def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
         super().__init__(chain, num_steps)
         check_lava_compatible(chain)
+        self.depth = self.L
         self.W = num_steps + self.L
         self.t = 1  # Lava's first time step
 
@@ -266,135 +271,26 @@ def ChainSimulator(
     return LavaFixedChain(chain, num_steps, fixed)
 
 
-def read_graph(path: str | Path, missing: str = "") -> Any:
-    """A NIR graph, or a clear error for a missing or unreadable file (``missing``: what to
-    do about a missing one)."""
-    import nir
-
-    path = Path(path)
-    if not path.is_file():
-        raise NIRFileError(f"no NIR file at {path}{missing}")
-    try:
-        return nir.read(path)
-    except Exception as exc:  # h5py raises several types for truncated or foreign files
-        raise NIRFileError(
-            f"{path}: not a readable NIR file ({type(exc).__name__}: {exc})"
-        ) from exc
+def reference_engine(policy: LoadedPolicy, arithmetic: Arithmetic) -> Engine:
+    """The numpy engine running ``policy`` in ``arithmetic``."""
+    fixed = policy.fixed if arithmetic == "fixed" else None
+    return ChainSimulator(policy.chain, policy.num_steps, arithmetic, fixed)
 
 
-def load_nir(path: str | Path) -> tuple[Any, Manifest]:
-    """Read a NIR graph and its manifest, with clear errors for missing or broken files."""
-    path = Path(path)
-    missing = "; create one with `snnkart export --nir RUN`"
-    if not path.is_file():
-        raise NIRFileError(f"no NIR file at {path}{missing}")
-    manifest = Manifest.read(manifest_path(path))
-    return read_graph(path, missing), manifest
-
-
-def load_chain(path: str | Path) -> tuple[ChainNetwork, Manifest]:
-    """Read a policy's NIR file and manifest as a chain checked against the manifest. The
-    manifest's decays (the float32 values torch used) replace the ones derived from tau."""
-    graph, manifest = load_nir(path)
-    try:
-        chain = chain_from_graph(graph, manifest.nir_dt, manifest.discretisation)
-    except UnsupportedGraphError as exc:
-        raise NIRFileError(f"{path}: {exc}") from exc
-    if chain.n_in != manifest.input_size:
-        fields = f" x {manifest.population} receptive fields" if manifest.population else ""
-        raise NIRFileError(
-            f"{path}: the graph takes {chain.n_in} inputs but the manifest's observation has "
-            f"{manifest.obs_dim}{fields}"
-        )
-    if len(chain.layers) != len(manifest.layers):
-        raise NIRFileError(
-            f"{path}: the graph has {len(chain.layers)} spiking layers, the manifest "
-            f"{len(manifest.layers)}"
-        )
-    layers = []
-    for layer, spec in zip(chain.layers, manifest.layers, strict=True):
-        if layer.neuron != spec.node or layer.size != spec.size:
-            raise NIRFileError(
-                f"{path}: LIF node {layer.neuron!r} ({layer.size} neurons) does not match the "
-                f"manifest's layer {spec.node!r} ({spec.size})"
-            )
-        if np.any(layer.v_reset != 0):
-            raise NIRFileError(f"{path}: LIF node {spec.node} does not reset to 0")
-        if np.ptp(layer.beta) > 1e-6 or np.ptp(layer.threshold) > 0:
-            raise NIRFileError(f"{path}: LIF node {spec.node} has non-uniform decay or threshold")
-        if abs(layer.beta[0] - spec.beta) > 1e-6 or layer.threshold[0] != spec.threshold:
-            raise NIRFileError(
-                f"{path}: LIF node {spec.node} (beta {layer.beta[0]:.6f}, threshold "
-                f"{layer.threshold[0]}) does not match the manifest (beta {spec.beta:.6f}, "
-                f"threshold {spec.threshold})"
-            )
-        if (layer.alpha is None) != (spec.alpha is None) or (
-            layer.alpha is not None
-            and spec.alpha is not None
-            and (np.ptp(layer.alpha) > 1e-6 or abs(layer.alpha[0] - spec.alpha) > 1e-6)
-        ):
-            raise NIRFileError(
-                f"{path}: node {spec.node}'s current decay ({_alpha(layer.alpha)}) does not "
-                f"match the manifest's ({spec.alpha})"
-            )
-        alpha = None if spec.alpha is None else np.full(layer.size, spec.alpha)
-        layers.append(dataclasses.replace(layer, beta=np.full(layer.size, spec.beta), alpha=alpha))
-    if manifest.readout_node and chain.readout_node != manifest.readout_node:
-        raise NIRFileError(f"{path}: readout node {chain.readout_node!r} is not the manifest's")
-    return dataclasses.replace(chain, layers=tuple(layers)), manifest
-
-
-def _alpha(alpha: np.ndarray | None) -> str:
-    return "none: a LIF" if alpha is None else f"alpha {alpha[0]:.6f}"
-
-
-class NIRReference:
-    """Predictor running an exported policy in numpy; counts spikes per layer per logical step.
-
-    ``step(obs)`` returns the window (raster, counts) and the action; ``predict`` the action.
-    """
+class NIRReference(Backend):
+    """The numpy reference backend: an exported policy in numpy, in any arithmetic; counts
+    spikes per layer per logical step. ``step(obs)`` returns the window (raster, counts) and
+    the readout; ``predict`` the action."""
 
     name = "nir-ref"
 
-    def __init__(self, nir_path: str | Path, arithmetic: str = "float32", seed: int = 0) -> None:
-        self.arithmetic: Arithmetic = check_arithmetic(arithmetic)
-        self.chain, self.manifest = load_chain(nir_path)
-        fixed = quantize(self.chain) if arithmetic == "fixed" else None
-        self.fixed = fixed
-        self.codec = HostCodec(self.chain, self.manifest, arithmetic, fixed, seed)
-        self.sim = ChainSimulator(self.chain, self.manifest.num_steps, arithmetic, fixed)
-        self.T = self.manifest.num_steps
-        self.counts = SpikeCounts(len(self.chain.layers))
+    def __init__(
+        self, source: str | Path | LoadedPolicy, arithmetic: str = "float32", seed: int = 0
+    ) -> None:
+        super().__init__(source, check_arithmetic(arithmetic), seed)
 
-    def reset(self) -> None:
-        """Nothing to forget: membranes are reset every env step (the Lava pipeline's state
-        carries on, as it does on Lava)."""
-
-    def step(self, obs: np.ndarray) -> tuple[WindowResult, np.ndarray]:
-        raster = self.sim.window(self.codec.encode(obs))
-        window = split_window(raster, self.chain.sizes, self.T)
-        self.counts.add(window, self.chain.fan_out)
-        last = window.logical[:, -self.chain.sizes[-1] :]
-        return window, self.codec.readout_spikes(last)
-
-    def normalise(self, obs: np.ndarray) -> np.ndarray:
-        return self.codec.normalise(obs)
-
-    def readout(self, obs: np.ndarray) -> np.ndarray:
-        """The readout vector (logits or action means) for one observation."""
-        return self.step(obs)[1]
-
-    def predict(self, obs: np.ndarray) -> Any:
-        return self.codec.decode(self.readout(obs))
-
-    def close(self) -> None:
-        """Nothing to stop: the reference runs in this process."""
-
-    def __enter__(self) -> NIRReference:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def open_engine(self, policy: LoadedPolicy, arithmetic: Arithmetic) -> Engine:
+        return reference_engine(policy, arithmetic)
 
 
 __all__ = [
@@ -406,10 +302,4 @@ __all__ = [
     "ManifestError",
     "NIRFileError",
     "NIRReference",
-    "SpikeCounts",
-    "WindowResult",
-    "load_chain",
-    "load_nir",
-    "read_graph",
-    "split_window",
 ]

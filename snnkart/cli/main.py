@@ -213,17 +213,21 @@ def eval_(
     (carried in its checkpoint and manifest), or on ``--track``."""
     from snnkart.app.evaluate import run_eval, run_eval_exported
 
-    if episodes < 1:
-        fail(f"--episodes must be >= 1, got {episodes}")
     if backend != "torch":
-        reporter = ConsoleReporter()
+        from snnkart.eval.request import BACKENDS, DeployRequest
+
+        if backend not in BACKENDS:
+            fail(f"unknown backend {backend!r}; choose torch, nir-ref or lava-sim")
+        request = guard(
+            lambda: DeployRequest(run_dir, backend, precision, episodes, seed, env, track, out)
+        )
         guard(
-            lambda: run_eval_exported(
-                run_dir, backend, precision, episodes, seed, checkpoint, out, reporter, env, track
-            ),
+            lambda: run_eval_exported(run_dir, checkpoint, request, ConsoleReporter()),
             _deploy_interrupted(backend),
         )
         return
+    if episodes < 1:
+        fail(f"--episodes must be >= 1, got {episodes}")
     if run_dir.suffix == ".nir":
         fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:
@@ -316,16 +320,15 @@ def deploy(
 ) -> None:
     """Run an exported policy in closed loop on Lava's simulated Loihi (or the reference),
     checked step by step against the numpy reference; print and write metrics and counts."""
+    from snnkart.app.deploy import run_deploy_reported
+    from snnkart.eval.request import DeployRequest
+
     if out is None:
         out = nir_file.parent / f"deploy-{backend}-{precision}"
-    from snnkart.app.deploy import run_deploy_reported
-
-    guard(
-        lambda: run_deploy_reported(
-            nir_file, backend, precision, episodes, seed, env, track, out, ConsoleReporter()
-        ),
-        _deploy_interrupted(backend),
+    request = guard(
+        lambda: DeployRequest(nir_file, backend, precision, episodes, seed, env, track, out)
     )
+    guard(lambda: run_deploy_reported(request, ConsoleReporter()), _deploy_interrupted(backend))
 
 
 app.command()(report)

@@ -18,17 +18,57 @@ import math
 import os
 import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
+from snnkart.envs.config import EnvConfig
 from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
+from snnkart.envs.tracks import Track
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 import pygame  # after the prompt switch
 
-if TYPE_CHECKING:
-    from snnkart.envs.base import KartEnv
+
+class DrawnEnv(Protocol):
+    """What the renderer reads from an env (:class:`snnkart.envs.base.KartEnv` has it all)."""
+
+    @property
+    def config(self) -> EnvConfig: ...
+    @property
+    def track(self) -> Track: ...
+    @property
+    def metadata(self) -> dict[str, Any]: ...
+    @property
+    def env_name(self) -> str: ...
+    @property
+    def egocentric(self) -> bool: ...
+    @property
+    def activity(self) -> list[tuple[str, float]]: ...
+    @property
+    def position(self) -> tuple[float, float]: ...
+    @property
+    def heading(self) -> float: ...
+    @property
+    def speed_m_s(self) -> float: ...
+    @property
+    def next_checkpoint(self) -> int: ...
+    @property
+    def lap_finished(self) -> bool: ...
+    @property
+    def elapsed_time(self) -> float: ...
+    @property
+    def lidar_distances(self) -> np.ndarray: ...
+    @property
+    def lidar_hits(self) -> np.ndarray: ...
+    @property
+    def last_action(self) -> Any: ...
+    @property
+    def last_reward_terms(self) -> dict[str, float]: ...
+    @property
+    def episode_return(self) -> float: ...
+    def describe_action(self, action: Any) -> str: ...
+
 
 WORLD_SIZE_PX = 1000.0
 """Track coordinates shown on screen: 0 .. 1000 px on each axis."""
@@ -74,7 +114,7 @@ class Renderer:
         human: open a window and show the frames in real time instead of returning arrays.
     """
 
-    def __init__(self, env: KartEnv, human: bool) -> None:
+    def __init__(self, env: DrawnEnv, human: bool) -> None:
         self.env = env
         self.human = human
         self.scale = s = float(env.config.render_scale)

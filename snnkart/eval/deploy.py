@@ -25,13 +25,16 @@ from pathlib import Path
 from typing import Any
 
 from snnkart import faults
-from snnkart.backends.base import BACKENDS, SpikeCounts
+from snnkart.backends.base import SpikeCounts
+from snnkart.backends.loading import load_policy
+from snnkart.backends.registry import BACKENDS
 from snnkart.contract.manifest import Manifest, ManifestError
 from snnkart.envs.tracks import track_label
 from snnkart.errors import DeployError, DeployWriteError, ParityError
 from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
 from snnkart.eval.parity import CheckedPredictor, check_parity, open_backends
 from snnkart.eval.policy_env import TrackChoice, make_policy_env, resolve_track
+from snnkart.eval.request import DeployRequest
 from snnkart.io import write_json
 
 DEPLOY_SCHEMA = "snnkart/deploy/v1"
@@ -50,39 +53,28 @@ def check_writable(out_dir: Path) -> None:
 
 
 def run_deploy(
-    nir_path: Path,
-    backend: str = "lava-sim",
-    precision: str = "fixed",
-    episodes: int = 10,
-    seed: int = 10_000,
-    env: str | None = None,
-    track: str | None = None,
-    out_dir: Path | None = None,
-    on_episode: Any = None,
-    on_step: Any = None,
+    request: DeployRequest, on_episode: Any = None, on_step: Any = None
 ) -> dict[str, Any]:
-    """Run ``episodes`` seeded episodes; return (and write to ``out_dir/deploy.json``) the record.
+    """Run the request's seeded episodes; return (and write to ``out/deploy.json``) the record.
 
     Ctrl-C and SIGTERM (:mod:`snnkart.faults`) are taken between env steps: the backend is
     stopped, nothing is written and :class:`~snnkart.faults.Interrupted` is raised."""
-    from snnkart.backends.reference import load_chain
-
-    if episodes < 1:
-        raise DeployError(f"--episodes must be >= 1, got {episodes}")
-    nir_path = Path(nir_path)
-    chain, manifest = load_chain(nir_path)  # fails fast on a bad file before starting Lava
-    choice = resolve_track(manifest, track)
-    gym_env = make_policy_env(manifest, env, choice.track)
+    nir_path, backend, precision = request.nir_file, request.backend, request.precision
+    seed, out_dir = request.seed, request.out
+    policy = load_policy(nir_path)  # fails fast on a bad file before starting Lava
+    chain, manifest = policy.chain, policy.manifest
+    choice = resolve_track(manifest, request.track)
+    gym_env = make_policy_env(manifest, request.env, choice.track)
     if out_dir is not None:
         check_writable(out_dir)
     with contextlib.ExitStack() as stack:
         stack.callback(gym_env.close)
         stack.enter_context(faults.caught())  # entered after gym_env.close: exits before it
         t0 = time.perf_counter()
-        primary, exact, float32 = open_backends(nir_path, backend, precision, seed)
+        primary, exact, float32 = open_backends(policy, backend, request.arithmetic, seed)
         stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
         run = _Run(CheckedPredictor(primary, exact, float32), time.perf_counter() - t0)
-        run.play(gym_env, episodes, seed, on_step, on_episode)
+        run.play(gym_env, request.episodes, seed, on_step, on_episode)
     record = {
         "schema": DEPLOY_SCHEMA,
         "backend": backend,
@@ -260,6 +252,7 @@ def summary_lines(record: dict[str, Any]) -> list[str]:
 __all__ = [
     "BACKENDS",
     "DeployError",
+    "DeployRequest",
     "DeployWriteError",
     "ManifestError",
     "ParityError",

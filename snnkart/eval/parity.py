@@ -6,14 +6,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from snnkart import faults
-from snnkart.backends.base import SpikingBackend, WindowResult, open_backend
+from snnkart.backends.backend import Backend
+from snnkart.backends.base import Arithmetic, WindowResult
+from snnkart.backends.loading import LoadedPolicy
 from snnkart.backends.reference import NIRReference
+from snnkart.backends.registry import make_backend
 from snnkart.errors import ParityError
 
 
@@ -59,9 +61,9 @@ class CheckedPredictor:
 
     def __init__(
         self,
-        primary: SpikingBackend,
-        exact: NIRReference | None,
-        float32: NIRReference | None,
+        primary: Backend,
+        exact: Backend | None,
+        float32: Backend | None,
     ) -> None:
         self.primary = primary
         self.exact = exact
@@ -120,18 +122,18 @@ def _flips(a: WindowResult, b: WindowResult) -> int:
 
 
 def open_backends(
-    nir_path: Path, backend: str, precision: str, seed: int
-) -> tuple[SpikingBackend, NIRReference | None, NIRReference | None]:
+    policy: LoadedPolicy, backend: str, arithmetic: Arithmetic, seed: int
+) -> tuple[Backend, Backend | None, Backend | None]:
     """The backend, its same-arithmetic reference (None for the reference itself) and the
-    float32 reference (None when the backend is the float32 reference)."""
-    primary = open_backend(nir_path, backend, precision, seed)
+    float32 reference (None when the backend is the float32 reference), all on ``policy``."""
+    primary = make_backend(policy, backend, arithmetic, seed)
     try:
-        exact = None
-        if backend != "nir-ref":
-            exact = NIRReference(nir_path, primary.arithmetic, seed=seed)
-        float32 = None
-        if not (backend == "nir-ref" and primary.arithmetic == "float32"):  # not itself
-            float32 = NIRReference(nir_path, "float32", seed=seed)
+        exact_arithmetic, float32_arithmetic = primary.parity_references()
+        exact = float32 = None
+        if exact_arithmetic is not None:
+            exact = NIRReference(policy, exact_arithmetic, seed=seed)
+        if float32_arithmetic is not None:
+            float32 = NIRReference(policy, float32_arithmetic, seed=seed)
     except BaseException:
         primary.close()
         raise

@@ -32,7 +32,7 @@ def trace_step(nir_path: str | Path, env_step: int, seed: int = 0,
     if env_step < 0:
         raise UsageError(f"--step must be >= 0, got {env_step}")
     policy = NIRReference(nir_path, "float32", seed=seed)
-    sim = policy.sim
+    sim = policy.engine
     assert isinstance(sim, Float32Chain)
     env = make_policy_env(policy.manifest, None, track)
     try:

@@ -126,7 +126,9 @@ def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile
     fig, axes = _figure(10.0, 3.8, ncols=2)
     left, right = axes[0]
     names = sorted({p["point"] for p in points})
-    cmap = __import__("matplotlib").colormaps["tab10"]
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10"]
     for k, name in enumerate(names):
         runs = [p for p in points if p["point"] == name]
         colour = cmap(k % 10)

@@ -9,7 +9,6 @@ here, when the ROS bridge is used, never for the whole environment.
 
 from __future__ import annotations
 
-import importlib
 import sys
 from types import ModuleType
 
@@ -29,21 +28,23 @@ def import_ros() -> dict[str, ModuleType]:
     """rospy and the message modules the bridge uses, or a clear error saying what to install."""
     if ROS_DIST_PACKAGES not in sys.path:
         sys.path.append(ROS_DIST_PACKAGES)
-    modules = {}
-    for name in (
-        "rospy",
-        "sensor_msgs.msg",
-        "nav_msgs.msg",
-        "geometry_msgs.msg",
-        "rosgraph_msgs.msg",
-    ):
-        try:
-            modules[name] = importlib.import_module(name)
-        except ImportError as exc:
-            raise RosUnavailableError(
-                f"ROS 1 is not installed ({exc}); on Debian: apt-get install {DEBIAN_PACKAGES}"
-            ) from exc
-    return modules
+    try:
+        import rospy
+        from geometry_msgs import msg as geometry_msgs
+        from nav_msgs import msg as nav_msgs
+        from rosgraph_msgs import msg as rosgraph_msgs
+        from sensor_msgs import msg as sensor_msgs
+    except ImportError as exc:
+        raise RosUnavailableError(
+            f"ROS 1 is not installed ({exc}); on Debian: apt-get install {DEBIAN_PACKAGES}"
+        ) from exc
+    return {
+        "rospy": rospy,
+        "sensor_msgs.msg": sensor_msgs,
+        "nav_msgs.msg": nav_msgs,
+        "geometry_msgs.msg": geometry_msgs,
+        "rosgraph_msgs.msg": rosgraph_msgs,
+    }
 
 
 def check_master() -> str:

@@ -197,8 +197,8 @@ def deploy(tmp: Path, nir_path: Path, runs: tuple[tuple[str, str, int], ...]) ->
 def _rasters(nir_path: Path, steps: int) -> dict[str, Any]:
     """Every window's raster and readout, and the actions, on the observations of a closed-loop
     run of the float32 reference, for each backend and arithmetic."""
-    from snnkart.backends.lava_sim import LavaSimPredictor
     from snnkart.backends.reference import NIRReference
+    from snnkart.backends.registry import open_backend
     from snnkart.eval.deploy import make_policy_env
 
     driver = NIRReference(nir_path, "float32")
@@ -219,7 +219,8 @@ def _rasters(nir_path: Path, steps: int) -> dict[str, Any]:
         for m in ("float32", "float64", "fixed")
     }
     predictors |= {
-        f"lava-sim {p}": lambda p=p: LavaSimPredictor(nir_path, p) for p in ("float", "fixed")
+        f"lava-sim {p}": lambda p=p: open_backend(nir_path, "lava-sim", p)
+        for p in ("float", "fixed")
     }
     for name, make in predictors.items():
         predictor = make()

@@ -1,0 +1,77 @@
+"""The records a study is made of, shared by :mod:`snnkart.app.study` (planning, training) and
+:mod:`snnkart.app.study_eval` (evaluation): the study config and one planned run."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from snnkart.app.launch import RunSpec
+from snnkart.app.protocol import DataKind
+
+STUDY_SCHEMA = "snnkart/study-config/v1"
+
+
+class StudyConfig(BaseModel):
+    """What a study trains: every track x env x policy (a cell) for every seed."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    schema_: str = Field(STUDY_SCHEMA, alias="schema")
+    name: str = "study"
+    data: DataKind = Field(description="tuning or reporting data (docs/results.md)")
+    tracks: list[str] = Field(["small_S"], min_length=1, description="built-in names or files")
+    envs: list[str] = Field(["grid", "gazebo", "steer"], min_length=1)
+    policies: list[Literal["ann", "snn"]] = Field(["ann", "snn"], min_length=1)
+    seeds: list[int] = Field([1, 2, 3, 4, 5], min_length=1)
+    steps: int = Field(300_000, ge=1, description="env steps per run (the cap)")
+    finishes: int = Field(300, ge=1, description="report the step at this many finishes")
+    eval_episodes: int = Field(50, ge=1)
+    deploy_episodes: int = Field(
+        5, ge=0, description="episodes of each SNN cell's median seed on lava-sim (0: none)"
+    )
+    eval_seed: int = 10_000
+    sets: list[str] = Field(default_factory=list, description="KEY=VALUE for every run")
+    cells: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description='KEY=VALUE per cell: "env-policy" or "track/env-policy" -> settings',
+    )
+    variants: dict[str, list[str]] = Field(
+        default_factory=dict,
+        description="an ablation: every cell once per named variant (its KEY=VALUE settings)",
+    )
+
+    @field_validator("variants")
+    @classmethod
+    def _variant_names(cls, variants: dict[str, list[str]]) -> dict[str, list[str]]:
+        for name in variants:
+            if not re.fullmatch(r"[A-Za-z0-9_.]+", name):
+                raise ValueError(f"variant name {name!r}: use letters, digits, '_' and '.'")
+        return variants
+
+
+@dataclass(frozen=True)
+class Run:
+    track: str
+    env: str
+    policy: str
+    seed: int
+    spec: RunSpec
+    variant: str = ""
+
+    @property
+    def cell_label(self) -> str:
+        return f"{track_label(self.track)}/{self.env}-{self.policy}"
+
+    @property
+    def label(self) -> str:
+        """``TRACK/ENV-POLICY`` (``:VARIANT`` in an ablation), what ``--only`` matches."""
+        return f"{self.cell_label}:{self.variant}" if self.variant else self.cell_label
+
+
+def track_label(track: str) -> str:
+    return Path(track).stem if track.endswith(".toml") else track
