@@ -42,6 +42,7 @@ from snnkart.backends.quantize import (
 from snnkart.backends.reference import ChainSimulator, NIRReference, load_chain
 from snnkart.cli import app
 from snnkart.contract.manifest import manifest_path
+from snnkart.contract.records import to_data
 from snnkart.eval.deploy import DEPLOY_SCHEMA, make_policy_env, run_deploy
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
@@ -989,7 +990,7 @@ def test_cli_deploy_lava_fixed_writes_the_record(exported: Path, tmp_path: Path)
     assert record["timing"]["startup_s"] > 0 and record["timing"]["ms_per_env_step"] > 0
     assert f"0 of {counts['env_steps']} env steps differ" in " ".join(result.output.split())
     # the same arithmetic in numpy drives the same episode with the same counts
-    ref = run_deploy(exported, "nir-ref", "fixed", episodes=1)
+    ref = to_data(run_deploy(exported, "nir-ref", "fixed", episodes=1))
     assert ref["counts"] == counts
     assert ref["episodes"][0]["length"] == episode["length"]
     assert ref["summary"] == record["summary"]
@@ -1013,7 +1014,7 @@ def test_cli_eval_run_dir_on_the_reference(
     assert record["counts"]["env_steps"] == sum(e["length"] for e in record["episodes"])
     assert record["counts"]["pipeline_overhead"]["neuron_updates"] == [0, 0]
     # the run directory was exported on the fly: the same policy as the exported file
-    direct = run_deploy(exported, "nir-ref", "float32", episodes=2)
+    direct = to_data(run_deploy(exported, "nir-ref", "float32", episodes=2))
     assert direct["episodes"] == record["episodes"]
     assert direct["counts"] == record["counts"]
     assert not any(runs["steer"].glob("eval-*"))  # --out was honoured

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.errors import DeployWriteError, ParityError
 
 
@@ -19,7 +19,7 @@ def run_deploy_reported(
     track: str | None,
     out: Path | None,
     reporter: Reporter,
-) -> dict[str, Any]:
+) -> DeployRecord:
     """:func:`snnkart.eval.deploy.run_deploy` with progress, then its summary. A parity
     mismatch or a failed write is reported with the summary, then raised."""
     from snnkart.eval.deploy import run_deploy
@@ -40,7 +40,7 @@ def run_deploy_reported(
     return record
 
 
-def report_summary(record: dict[str, Any], out: Path | None, reporter: Reporter) -> None:
+def report_summary(record: DeployRecord, out: Path | None, reporter: Reporter) -> None:
     from snnkart.eval.deploy import summary_lines
 
     for line in summary_lines(record):

@@ -24,6 +24,7 @@ from typing import Any
 
 from snnkart import faults
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.io import write_json
 
 DEMO_ENV = "grid"
@@ -156,7 +157,7 @@ def _quantisation(
 
 def _deploy(
     nir_path: Path, out: Path, lava_episodes: int, reporter: Reporter
-) -> dict[str, dict[str, Any]]:
+) -> dict[str, DeployRecord]:
     from snnkart.app.deploy import run_deploy_reported
 
     reporter.message(f"[5/6] deploying on lava-sim ({lava_episodes} episodes fixed, 2 float)")

@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
+from snnkart.contract.records import RecordError, to_data
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import Comparison, ann_terms, breakdown, snn_terms, total
 from snnkart.energy.profiles import (
@@ -27,7 +29,7 @@ DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
 
-def read_deploy(deploy_dir: Path) -> dict[str, Any]:
+def read_deploy(deploy_dir: Path) -> DeployRecord:
     path = deploy_dir / "deploy.json" if deploy_dir.is_dir() else deploy_dir
     if not path.is_file():
         raise ReportError(
@@ -35,12 +37,9 @@ def read_deploy(deploy_dir: Path) -> dict[str, Any]:
             "snnkart deploy --out DIR"
         )
     try:
-        record = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ReportError(f"{path}: not a readable deploy.json ({exc}); deploy again") from exc
-    if not str(record.get("schema", "")).startswith("snnkart/deploy/"):
-        raise ReportError(f"{path}: not a snnkart deploy record (schema {record.get('schema')!r})")
-    return record
+        return DeployRecord.read(path)
+    except RecordError as exc:
+        raise ReportError(str(exc)) from exc
 
 
 def _profiles(
@@ -67,50 +66,50 @@ def _memory_first(digital: list[Profile]) -> list[Profile]:
     return sorted(digital, key=lambda p: p["weight_read"] == 0)
 
 
-def _ann_run(ann_dir: Path, record: dict[str, Any]) -> tuple[AnnCounts, dict[str, Any]]:
+def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, Any]]:
     """The user's ANN run: its widths, and its task performance on the deployment's episodes."""
     from snnkart.eval.episodes import EvalSummary, run_episodes
     from snnkart.rl.trained import TorchPredictor, load_run
 
     run = load_run(ann_dir)
     widths = run.actor_widths()
-    env = record["env"]
-    if run.config.env != env["env"]:
+    env = record.env
+    if run.config.env != env.env:
         raise ReportError(
-            f"--ann {ann_dir} is a {run.config.env} run, the deployment drove {env['env']}; "
+            f"--ann {ann_dir} is a {run.config.env} run, the deployment drove {env.env}; "
             "compare policies of the same env"
         )
     trained = run.track_record()
-    if trained["sha256"] != env.get("track_sha256"):
+    if trained["sha256"] != env.track_sha256:
         raise ReportError(
             f"--ann {ann_dir} was trained on track {trained['name']}, the deployment drove "
-            f"{env.get('track')}; compare on the same track"
+            f"{env.track}; compare on the same track"
         )
     gym_env = run.config.make_env(track=run.track)
-    episodes = len(record.get("episodes", [])) or 1
+    episodes = len(record.episodes) or 1
     try:
-        results = run_episodes(gym_env, TorchPredictor(run, seed=record["first_seed"]),
-                               episodes, record["first_seed"])  # fmt: skip
+        results = run_episodes(gym_env, TorchPredictor(run, seed=record.first_seed),
+                               episodes, record.first_seed)  # fmt: skip
     finally:
         gym_env.close()
     summary = EvalSummary.of(results)
     steps = sum(r.length for r in results)
     task = {
         "run": str(ann_dir), "global_step": run.meta.get("global_step"),
-        "episodes": episodes, "first_seed": record["first_seed"],
+        "episodes": episodes, "first_seed": record.first_seed,
         "success_rate": summary.success_rate, "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return, "steps_per_episode": steps / episodes,
     }  # fmt: skip
     return AnnCounts(widths, run.config.action_mode, "ANN run"), task
 
 
-def _snn_section(snn: SnnCounts, record: dict[str, Any]) -> dict[str, Any]:
-    net, s = snn.net, record["summary"]
+def _snn_section(snn: SnnCounts, record: DeployRecord) -> dict[str, Any]:
+    net, s = snn.net, record.summary
     return {
         "task": {
-            "success_rate": s["success_rate"],
-            "mean_lap_time": s["mean_lap_time"],
-            "mean_return": s["mean_return"],
+            "success_rate": s.success_rate,
+            "mean_lap_time": s.mean_lap_time,
+            "mean_return": s.mean_return,
             "episodes": snn.episodes,
             "steps_per_episode": snn.steps_per_episode,
         },
@@ -132,8 +131,8 @@ def _snn_section(snn: SnnCounts, record: dict[str, Any]) -> dict[str, Any]:
         "latency": {
             "logical_steps": net.num_steps,
             "lava_steps_per_action": net.num_steps + net.depth,
-            "ms_per_env_step": record.get("timing", {}).get("ms_per_env_step"),
-            "backend": record["backend"],
+            "ms_per_env_step": record.timing.ms_per_env_step,
+            "backend": record.backend,
         },
     }
 
@@ -204,21 +203,21 @@ def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> 
             "ann_64_64_pj": ann_pj}  # fmt: skip
 
 
-def _deploy_section(record: dict[str, Any], deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
+def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
     """Where the counts come from: the deployment, its env and track, and its parity."""
     return {
         "file": str(deploy_dir),
-        "backend": record["backend"],
-        "precision": record["precision"],
-        "nir_file": record.get("nir_file"),
-        "env": record["env"]["env"],
-        "track": record["env"].get("track"),
-        "track_given": record["env"].get("track_given"),
-        "track_source": record["env"].get("track_source"),
+        "backend": record.backend,
+        "precision": record.precision,
+        "nir_file": record.nir_file,
+        "env": record.env.env,
+        "track": record.env.track,
+        "track_given": record.env.track_given,
+        "track_source": record.env.track_source,
         "episodes": snn.episodes,
         "env_steps": snn.env_steps,
-        "first_seed": record["first_seed"],
-        "parity": record.get("parity"),
+        "first_seed": record.first_seed,
+        "parity": to_data(record.parity),
     }
 
 
@@ -237,7 +236,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
     }  # fmt: skip
     if ann_dir is not None:
         anns["run"] = _ann_run(ann_dir, record)
-    success = record["summary"]["success_rate"]
+    success = record.summary.success_rate
     return {
         "schema": REPORT_SCHEMA,
         "deploy": _deploy_section(record, deploy_dir, snn),
@@ -258,7 +257,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
             for p in [*chips, *digital, *([host_profile] if host_profile else [])]
         },
         "comparisons": _comparisons(
-            snn, anns, chips, digital, host_profile, record["summary"]["mean_return"]
+            snn, anns, chips, digital, host_profile, record.summary.mean_return
         ),
         "sensitivity": [
             {

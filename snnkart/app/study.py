@@ -32,7 +32,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from snnkart.app.launch import LocalPool, RunResult, RunSpec
 from snnkart.app.provenance import machine_info
 from snnkart.app.reporter import Reporter
-from snnkart.app.study_eval import deploy_median_seeds, eval_backend, evaluate
+from snnkart.app.study_eval import Evaluation, deploy_median_seeds, eval_backend, evaluate
 from snnkart.envs.spec import ENV_REVISION
 from snnkart.envs.tracks import load_track
 from snnkart.errors import UsageError
@@ -233,7 +233,7 @@ def steps_to(finishes: int, c: dict[str, list[Any]]) -> int | None:
 
 
 def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
-               evaluation: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+               evaluation: Evaluation) -> dict[str, Any]:  # fmt: skip
     c = curve(runs_dir / run.spec.name)
     return {
         "name": run.spec.name, "track": run.track, "env": run.env, "policy": run.policy,
@@ -245,10 +245,11 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
         "training_finishes": result.finishes, "training_episodes": result.episodes,
         "train_seconds": sum(c["seconds"]),
         "eval_backend": eval_backend(run),
-        "eval_success_rate": evaluation["success_rate"],
-        "eval_mean_return": evaluation["mean_return"], "eval_crashes": evaluation["crashes"],
-        "eval_stood_still": evaluation.get("stood_still"),
-        "eval_spikes_per_step": evaluation.get("spikes_per_step"), "curve": c,
+        "eval_success_rate": evaluation.summary.success_rate,
+        "eval_mean_return": evaluation.summary.mean_return,
+        "eval_crashes": evaluation.summary.crashes,
+        "eval_stood_still": evaluation.summary.stood_still,
+        "eval_spikes_per_step": evaluation.spikes_per_step, "curve": c,
     }  # fmt: skip
 
 

@@ -4,17 +4,19 @@ in fixed point, checked step by step against the reference of the same arithmeti
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 from snnkart.app.launch import stop_processes
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
+from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.errors import UsageError
 
 if TYPE_CHECKING:
@@ -98,7 +100,7 @@ def _run_all(cmds: list[tuple[str, list[str]]], jobs: int, reporter: Reporter, w
 
 
 def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
-             reporter: Reporter) -> dict[str, dict[str, Any]]:  # fmt: skip
+             reporter: Reporter) -> dict[str, Evaluation]:  # fmt: skip
     """Each run's evaluation summary, evaluating (``jobs`` at a time) where none newer than
     its checkpoint exists."""
     cmds = []
@@ -142,28 +144,34 @@ def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: St
     _run_all(cmds, 1, reporter, "deployments on lava-sim", ok=(0, PARITY_FAILED))
     out = []
     for r in chosen:
-        result = json.loads((runs_dir / r["name"] / DEPLOY_DIR / "deploy.json").read_text())
-        parity = result["parity"]
+        result = DeployRecord.read(runs_dir / r["name"] / DEPLOY_DIR / "deploy.json")
         out.append({
             "track": r["track"], "env": r["env"], "variant": r["variant"], "run": r["name"],
             "seed": r["seed"],
-            "backend": "lava-sim fixed", "episodes": result["summary"]["episodes"],
-            "success_rate": result["summary"]["success_rate"],
-            "bit_exact": parity["same_arithmetic_mismatched_windows"] == 0
-            and parity["same_arithmetic_mismatched_actions"] == 0,
-            "env_steps": parity["env_steps"],
+            "backend": "lava-sim fixed", "episodes": result.summary.episodes,
+            "success_rate": result.summary.success_rate,
+            "bit_exact": result.bit_exact,
+            "env_steps": result.parity.env_steps,
             "reference_success_rate": r["eval_success_rate"],
             "reference_episodes": study.eval_episodes,
         })  # fmt: skip
     return out
 
 
-def _summary(path: Path) -> dict[str, Any]:
-    """An evaluation's summary; for an SNN also its spikes per env step (one inference: T
-    steps of every spiking layer, from the reference's counts)."""
-    data = json.loads(path.read_text())
-    summary = dict(data["summary"])
-    counts = data.get("counts")
-    if counts and counts.get("env_steps"):
-        summary["spikes_per_step"] = sum(counts["spikes"]) / counts["env_steps"]
-    return summary
+@dataclass(frozen=True)
+class Evaluation:
+    """A run's evaluation: its summary, and for an SNN on the reference its spikes per env step
+    (one inference: T steps of every spiking layer, from the reference's counts)."""
+
+    summary: EvalSummary
+    spikes_per_step: float | None = None
+
+
+def _summary(path: Path) -> Evaluation:
+    """The evaluation in ``path``: a ``deploy.json`` (an SNN on the reference) or an
+    ``eval.json`` (torch)."""
+    if path.name != "deploy.json":
+        return Evaluation(EvalRecord.read(path).summary)
+    record = DeployRecord.read(path)
+    steps = record.counts.env_steps
+    return Evaluation(record.summary, sum(record.counts.spikes) / steps if steps else None)

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from snnkart.contract.deploy_record import Counts, DeployRecord
 from snnkart.errors import ReportError
 
 
@@ -38,23 +39,19 @@ class Network:
     action_mode: str = "discrete"
 
     @classmethod
-    def of_deploy(cls, record: dict[str, Any]) -> Network:
-        net, manifest = record.get("network"), record.get("manifest", {})
-        if not net:
-            raise ReportError(
-                "the deploy.json has no network description (written by an older snnkart); "
-                "run snnkart deploy again"
-            )
+    def of_deploy(cls, record: DeployRecord) -> Network:
+        """The network a deployment ran: its shape, T, encoding and action decoding."""
+        net, manifest = record.network, record.manifest
         return cls(
-            n_in=int(net["n_in"]),
-            sizes=tuple(int(s) for s in net["sizes"]),
-            n_out=int(net["n_out"]),
-            num_steps=int(manifest["num_steps"]),
-            encoding=str(manifest.get("encoding", "current")),
-            population=int(manifest.get("population") or 0),
-            readout=bool(net.get("readout", True)),
-            input_scale=bool(net.get("input_scale", False)),
-            action_mode=str(manifest.get("action_mode", "discrete")),
+            n_in=net.n_in,
+            sizes=tuple(net.sizes),
+            n_out=net.n_out,
+            num_steps=manifest.num_steps,
+            encoding=manifest.encoding,
+            population=manifest.population or 0,
+            readout=net.readout,
+            input_scale=net.input_scale,
+            action_mode=manifest.action_mode,
         )
 
     def __post_init__(self) -> None:
@@ -166,13 +163,20 @@ class SnnCounts:
     host: tuple[HostOp, ...] = field(default=())
 
     @classmethod
-    def of_deploy(cls, record: dict[str, Any]) -> SnnCounts:
-        net = Network.of_deploy(record)
-        c = record["counts"]
-        n = int(c["env_steps"])
+    def of_deploy(cls, record: DeployRecord) -> SnnCounts:
+        """A deployment's counts, per env step (its episodes, or one if it lists none)."""
+        return cls.measured(
+            Network.of_deploy(record), record.counts, len(record.episodes) or 1,
+            fixed_point=record.precision == "fixed",
+        )  # fmt: skip
+
+    @classmethod
+    def measured(cls, net: Network, c: Counts, episodes: int, fixed_point: bool) -> SnnCounts:
+        """Counts measured over ``c.env_steps`` env steps of ``episodes`` episodes, per step."""
+        n = c.env_steps
         if n < 1:
             raise ReportError("the deployment ran no env step; deploy at least one episode")
-        over = c.get("pipeline_overhead", {})
+        over = c.pipeline_overhead
         L = len(net.sizes)
 
         def per_step(values: list[int] | None, chip_only: bool = False) -> tuple[float, ...]:
@@ -184,14 +188,14 @@ class SnnCounts:
         return cls(
             net=net,
             env_steps=n,
-            episodes=len(record.get("episodes", [])) or 1,
-            spikes=per_step(c["spikes"]),
-            synops=per_step(c["synops"], chip_only=True),
-            neuron_updates=per_step(c["neuron_updates"]),
-            overhead_spikes=per_step(over.get("spikes")),
-            overhead_synops=per_step(over.get("synops"), chip_only=True),
-            overhead_neuron_updates=per_step(over.get("neuron_updates")),
-            host=tuple(host_ops(net, fixed_point=record.get("precision") == "fixed")),
+            episodes=episodes,
+            spikes=per_step(c.spikes),
+            synops=per_step(c.synops, chip_only=True),
+            neuron_updates=per_step(c.neuron_updates),
+            overhead_spikes=per_step(over.spikes if over else None),
+            overhead_synops=per_step(over.synops if over else None, chip_only=True),
+            overhead_neuron_updates=per_step(over.neuron_updates if over else None),
+            host=tuple(host_ops(net, fixed_point=fixed_point)),
         )
 
     @classmethod
