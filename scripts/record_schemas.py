@@ -13,12 +13,16 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from snnkart.app import launch
 from snnkart.contract import deploy_record, eval_record
 from snnkart.contract.records import json_schema
+from snnkart.report import study_record
 
 RECORDS = [
     (deploy_record.DeployRecord, deploy_record.SCHEMA_FILE),
     (eval_record.EvalRecord, eval_record.SCHEMA_FILE),
+    (study_record.StudyRecord, study_record.SCHEMA_FILE),
+    (launch.LaunchRecord, launch.SCHEMA_FILE),
 ]
 """Every record kind and its shipped schema (``tests/test_records.py`` lists them too)."""
 

@@ -6,7 +6,9 @@ and follow the one versioning rule of :mod:`snnkart.contract.records`.
 ``tests/data/records/`` holds files written by the snnkart before the records were typed
 (commit c415580): ``snnkart deploy`` of the committed NIR export on nir-ref (fixed, 2 episodes;
 float32, 1 episode) and on lava-sim fixed on another track (big_S, 1 episode), and
-``snnkart eval`` of the committed grid SNN (2 episodes); absolute paths were made relative.
+``snnkart eval`` of the committed grid SNN (2 episodes), and ``snnkart study`` of a tiny
+study (grid, ANN and SNN, seeds 1 and 2, 384 steps, 1 episode on Lava: its ``study.json``,
+``study.md`` and ``runs/launch.json``); absolute paths were made relative.
 """
 
 from __future__ import annotations
@@ -20,10 +22,14 @@ from typing import Any
 import jsonschema
 import pytest
 
+from snnkart.app import launch
+from snnkart.app.launch import LaunchRecord
 from snnkart.contract import deploy_record, eval_record
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.eval_record import EvalRecord
 from snnkart.contract.records import Record, RecordError, RecordKind, json_schema, to_data
+from snnkart.report import study_record
+from snnkart.report.study_record import StudyRecord
 
 DATA = Path(__file__).parent / "data" / "records"
 FILES = [
@@ -31,10 +37,22 @@ FILES = [
     (DeployRecord, DATA / "deploy-nir-ref-float32.json"),
     (DeployRecord, DATA / "deploy-lava-sim-fixed-big_S.json"),
     (EvalRecord, DATA / "eval.json"),
+    (StudyRecord, DATA / "study.json"),
+    (LaunchRecord, DATA / "launch.json"),
 ]
+TAGGED = [(cls, path) for cls, path in dict(FILES).items() if cls.KIND.untagged is None]
+"""A file of each kind with a ``schema`` tag (``launch.json`` v1 has none)."""
+WRONG_TYPE = {  # a field of each kind, and a value of the wrong type for it
+    DeployRecord: ("summary", "episodes", "two"),
+    EvalRecord: ("summary", "crashes", 1.5),
+    StudyRecord: ("wall_clock", "runs", None),
+    LaunchRecord: ("runs", 0, {"name": 1}),
+}
 SCHEMA_FILES: dict[type[Record], Path] = {
     DeployRecord: deploy_record.SCHEMA_FILE,
     EvalRecord: eval_record.SCHEMA_FILE,
+    StudyRecord: study_record.SCHEMA_FILE,
+    LaunchRecord: launch.SCHEMA_FILE,
 }
 KINDS = list(SCHEMA_FILES)
 
@@ -74,15 +92,24 @@ def test_a_file_of_today_validates_against_the_shipped_schema(cls: type[Record],
     schema = _schema(cls)
     data = json.loads(path.read_text())
     jsonschema.validate(data, schema)
-    for broken in (
-        {**data, "schema": data["schema"].replace("/v1", "/v2")},
-        {**data, "summary": {**data["summary"], "episodes": "two"}},
-        {**data, "first_seed": None},
-        {k: v for k, v in data.items() if k != "summary"},
-        {**data, "extra": 1},
-    ):
+    first = schema["required"][-1]
+    for name, broken in {
+        "newer": {**data, "schema": cls.KIND.tag_of(2)},
+        "wrong type": _wrong_type(cls, data),
+        "missing": {k: v for k, v in data.items() if k != first},
+        "unknown key": {**data, "extra": 1},
+    }.items():
         with pytest.raises(jsonschema.ValidationError):
             jsonschema.validate(broken, schema)
+            pytest.fail(f"{name}: valid")
+
+
+def _wrong_type(cls: type[Record], data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` with one nested value of the wrong type (:data:`WRONG_TYPE`)."""
+    outer, inner, value = WRONG_TYPE[cls]
+    broken = json.loads(json.dumps(data))
+    broken[outer][inner] = value
+    return broken  # type: ignore[no-any-return]
 
 
 def _schema(cls: type[Record]) -> dict[str, Any]:
@@ -96,7 +123,7 @@ def test_the_shipped_schema_is_the_records(cls: type[Record]) -> None:
     )
 
 
-@pytest.mark.parametrize(("cls", "path"), FILES[:1] + FILES[-1:], ids=_id)
+@pytest.mark.parametrize(("cls", "path"), TAGGED, ids=_id)
 def test_a_file_of_another_kind_or_a_newer_version_is_refused(cls: type[Record], path: Path,
                                                               tmp_path: Path) -> None:  # fmt: skip
     data = json.loads(path.read_text())
@@ -105,13 +132,13 @@ def test_a_file_of_another_kind_or_a_newer_version_is_refused(cls: type[Record],
         "newer": ({**data, "schema": kind.tag_of(kind.version + 1)},
                   f"written by a newer snnkart ({kind.tag_of(kind.version + 1)}; this one reads "
                   f"up to {kind.tag}); upgrade snnkart to read it"),
-        "other": ({**data, "schema": "snnkart/study/v1"},
-                  f"not a {kind.name} record (schema 'snnkart/study/v1', expected {kind.tag!r})"),
+        "other": ({**data, "schema": "snnkart/other/v1"},
+                  f"not a {kind.name} record (schema 'snnkart/other/v1', expected {kind.tag!r})"),
         "untagged": ({k: v for k, v in data.items() if k != "schema"},
                      f"not a {kind.name} record (schema None"),
         "unknown key": ({**data, "extra": 1}, f"extra is an unknown key in a {kind.tag} record"),
-        "wrong type": ({**data, "summary": {**data["summary"], "crashes": 1.5}},
-                       f"summary.crashes is 1.5, not int, in a {kind.tag} record"),
+        "wrong type": (_wrong_type(cls, data), f"{WRONG_TYPE[cls][0]}.{WRONG_TYPE[cls][1]} is "
+                       f"{WRONG_TYPE[cls][2]!r}, not "),
     }  # fmt: skip
     for name, (broken, message) in cases.items():
         bad = tmp_path / f"{name}.json"
@@ -238,3 +265,27 @@ def test_deploy_prints_what_it_printed_from_a_dict(name: str) -> None:
     from snnkart.eval.deploy import summary_lines
 
     assert summary_lines(DeployRecord.read(DATA / name)) == SUMMARY_LINES[name]
+
+
+def test_an_untagged_launch_file_is_v1_and_a_tagged_newer_one_is_refused(tmp_path: Path) -> None:
+    data = json.loads((DATA / "launch.json").read_text())
+    assert "schema" not in data and LaunchRecord.KIND.untagged == 1
+    assert [r.name for r in LaunchRecord.read(DATA / "launch.json").runs] == [
+        "small_S-grid-ann-s1", "small_S-grid-ann-s2", "small_S-grid-snn-s1", "small_S-grid-snn-s2"]  # fmt: skip
+    newer = tmp_path / "launch.json"
+    newer.write_text(json.dumps({"schema": "snnkart/launch/v2", **data}))
+    with pytest.raises(RecordError, match=r"written by a newer snnkart \(snnkart/launch/v2"):
+        LaunchRecord.read(newer)
+    ray = LaunchRecord(backend="ray", interrupted=True, runs=[])
+    assert ray.to_json() == '{\n  "backend": "ray",\n  "interrupted": true,\n  "runs": []\n}\n'
+
+
+def test_study_md_from_the_typed_record_is_what_it_was() -> None:
+    """``study.md`` rendered from the typed record equals the one the code before it wrote
+    from the same study (recorded with that code)."""
+    from snnkart.app.study_summary import ORIGINAL
+    from snnkart.report.study import markdown
+
+    record = StudyRecord.read(DATA / "study.json")
+    assert markdown(record, ORIGINAL) == (DATA / "study.md").read_text()
+    assert len(record.deployed) == 1 and {c.policy for c in record.cells} == {"ann", "snn"}

@@ -18,12 +18,13 @@ import signal
 import subprocess
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from snnkart import faults
 from snnkart.app.reporter import Reporter
+from snnkart.contract.records import OMIT_NONE, Record, RecordKind
 from snnkart.errors import UsageError
 from snnkart.rl.config import TrainConfig
 
@@ -53,6 +54,24 @@ class RunResult:
     error: str | None = None
     stopped_early: bool = False
     """The run's ``stop`` rule ended it before ``total_steps``."""
+
+
+LAUNCH = RecordKind("launch", 1, rerun="snnkart study", untagged=1)
+"""``launch.json``; v1 files carry no ``schema`` tag (they predate the tags): v2 will."""
+SCHEMA_FILE = Path(__file__).with_name("launch.schema.json")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LaunchRecord(Record):
+    """``launch.json`` (``snnkart/launch/v1``): one result per run of a launcher's list, and
+    whether the launch was interrupted; ``backend`` is ``ray`` for Ray Tune, absent for the
+    local pool."""
+
+    KIND = LAUNCH
+
+    backend: str | None = field(default=None, metadata=OMIT_NONE)
+    interrupted: bool
+    runs: list[RunResult]
 
 
 def complete(run_dir: Path, spec: RunSpec) -> bool:
@@ -184,7 +203,4 @@ class LocalPool:
             task.advance()
 
     def _write(self, results: list[RunResult], interrupted: bool) -> None:
-        from snnkart.io import write_json
-
-        write_json(self.out / "launch.json",
-                   {"interrupted": interrupted, "runs": [asdict(r) for r in results]})  # fmt: skip
+        LaunchRecord(interrupted=interrupted, runs=results).write(self.out / "launch.json")

@@ -11,13 +11,14 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING
 
 from snnkart.app.launch import stop_processes
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.errors import UsageError
+from snnkart.report.study_record import DeployedRun, RunRecord
 
 if TYPE_CHECKING:
     from snnkart.app.study import Run, StudyConfig
@@ -114,47 +115,44 @@ def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
     return {run.spec.name: _summary(_eval_target(run, runs_dir)[1]) for run in runs}
 
 
-def median_seed(records: list[dict[str, Any]]) -> dict[str, Any]:
+def median_seed(records: list[RunRecord]) -> RunRecord:
     """The run in the middle of a cell's seeds by steps to N finishes (never = last; ties by
     seed); of an even count, the earlier of the middle two."""
-    order = sorted(records, key=lambda r: (r["steps_to_finishes"] is None,
-                                           r["steps_to_finishes"] or 0, r["seed"]))  # fmt: skip
+    order = sorted(records, key=lambda r: (r.steps_to_finishes is None,
+                                           r.steps_to_finishes or 0, r.seed))  # fmt: skip
     return order[(len(order) - 1) // 2]
 
 
-def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: StudyConfig,
-                        reporter: Reporter) -> list[dict[str, Any]]:  # fmt: skip
+def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyConfig,
+                        reporter: Reporter) -> list[DeployedRun]:  # fmt: skip
     """Each SNN cell's median-seed run on lava-sim in fixed point for
     ``study.deploy_episodes`` episodes (the evaluation's first seeds), one at a time (Lava
     runs its own processes); what each deployment gave and whether it was bit-exact."""
-    cells: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    cells: dict[tuple[str, str, str], list[RunRecord]] = {}
     for r in records:
-        if r["eval_backend"] == "nir-ref fixed":
-            cells.setdefault((r["track"], r["env"], r["variant"]), []).append(r)
+        if r.eval_backend == "nir-ref fixed":
+            cells.setdefault((r.track, r.env, r.variant), []).append(r)
     chosen = [median_seed(rs) for rs in cells.values()]
     cmds = []
     for r in chosen:
-        run_dir = runs_dir / r["name"]
+        run_dir = runs_dir / r.name
         if _stale(run_dir / DEPLOY_DIR / "deploy.json", run_dir / "checkpoint.pt"):
-            cmds.append((r["name"], ["eval", str(run_dir), "--backend", "lava-sim",
-                                     "--precision", "fixed", "--episodes",
-                                     str(study.deploy_episodes), "--seed", str(study.eval_seed),
-                                     "--out", str(run_dir / DEPLOY_DIR)]))  # fmt: skip
+            cmds.append((r.name, ["eval", str(run_dir), "--backend", "lava-sim",
+                                  "--precision", "fixed", "--episodes",
+                                  str(study.deploy_episodes), "--seed", str(study.eval_seed),
+                                  "--out", str(run_dir / DEPLOY_DIR)]))  # fmt: skip
     # a deployment that left the reference still wrote its record: it shows as not bit-exact
     _run_all(cmds, 1, reporter, "deployments on lava-sim", ok=(0, PARITY_FAILED))
     out = []
     for r in chosen:
-        result = DeployRecord.read(runs_dir / r["name"] / DEPLOY_DIR / "deploy.json")
-        out.append({
-            "track": r["track"], "env": r["env"], "variant": r["variant"], "run": r["name"],
-            "seed": r["seed"],
-            "backend": "lava-sim fixed", "episodes": result.summary.episodes,
-            "success_rate": result.summary.success_rate,
-            "bit_exact": result.bit_exact,
-            "env_steps": result.parity.env_steps,
-            "reference_success_rate": r["eval_success_rate"],
-            "reference_episodes": study.eval_episodes,
-        })  # fmt: skip
+        result = DeployRecord.read(runs_dir / r.name / DEPLOY_DIR / "deploy.json")
+        out.append(DeployedRun(
+            track=r.track, env=r.env, variant=r.variant, run=r.name, seed=r.seed,
+            backend="lava-sim fixed", episodes=result.summary.episodes,
+            success_rate=result.summary.success_rate, bit_exact=result.bit_exact,
+            env_steps=result.parity.env_steps, reference_success_rate=r.eval_success_rate,
+            reference_episodes=study.eval_episodes,
+        ))  # fmt: skip
     return out
 
 

@@ -14,11 +14,11 @@ The rule, for every record kind (:class:`RecordKind`):
 
 A record converts to and from JSON through one generic path (:func:`to_data`,
 :func:`from_data`) driven by its fields' types: nested dataclasses, ``list``/``tuple``,
-``dict[str, X]``, ``X | None`` and JSON scalars. A field whose metadata has ``omit_none`` is
-left out of the file when it is None (as the files always did), and ``key`` names a field whose
-JSON key is not a Python name. Keys come out in field order, so a record written through its
-dataclass is byte for byte the file it replaced. :func:`json_schema` gives the JSON Schema
-shipped beside each kind (``*.schema.json``).
+``dict[str, X]``, ``X | None`` and JSON scalars. Field metadata: ``omit_none`` leaves a key
+out of the file when it is None (as the files always did), ``omit_if`` a key only some records
+carry, and ``key`` names a field whose JSON key is not a Python name. Keys come out in field
+order, so a record written through its dataclass is byte for byte the file it replaced.
+:func:`json_schema` gives the JSON Schema shipped beside each kind (``*.schema.json``).
 """
 
 from __future__ import annotations
@@ -44,6 +44,12 @@ OMIT_NONE = {"omit_none": True}
 def key(name: str, omit_none: bool = False) -> dict[str, object]:
     """Field metadata: the field's JSON key is ``name`` (e.g. ``return``, not a Python name)."""
     return {"key": name, "omit_none": omit_none}
+
+
+def omit_if(test: typing.Callable[[Any], bool]) -> dict[str, object]:
+    """Field metadata: leave the key out of the file when ``test(record)`` holds (a key only
+    some records of a kind carry, e.g. only an SNN cell's comparison with its ANN)."""
+    return {"omit_if": test}
 
 
 class RecordError(SnnkartError, ValueError):
@@ -107,7 +113,8 @@ def to_data(record: Any) -> Any:
         out: dict[str, Any] = {}
         for f in dataclasses.fields(record):
             value = getattr(record, f.name)
-            if value is None and f.metadata.get("omit_none"):
+            omit_if = f.metadata.get("omit_if")
+            if (value is None and f.metadata.get("omit_none")) or (omit_if and omit_if(record)):
                 continue
             out[f.metadata.get("key", f.name)] = to_data(value)
         return out
@@ -240,7 +247,7 @@ def _schema(tp: Any) -> dict[str, Any]:
             no_default = (
                 f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
             )
-            if no_default and not f.metadata.get("omit_none"):
+            if no_default and not (f.metadata.get("omit_none") or f.metadata.get("omit_if")):
                 required.append(name)
         doc = " ".join((tp.__doc__ or "").split())
         auto = doc.startswith(f"{getattr(tp, '__name__', '')}(")  # dataclass's own
