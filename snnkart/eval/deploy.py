@@ -22,7 +22,7 @@ import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from snnkart import faults
 from snnkart.backends.base import BACKENDS, SpikeCounts
@@ -109,7 +109,7 @@ def run_deploy(
             action_mode=gym_env.unwrapped.action_mode,
         ),
         first_seed=seed,
-        **run.results(),
+        **run.results()._asdict(),
         machine=Machine(python=platform.python_version(), machine=platform.machine()),
         versions=manifest.versions,
         episodes=run.per_episode,
@@ -118,6 +118,17 @@ def run_deploy(
         _write(out_dir / "deploy.json", record)
     check_parity(record)
     return record
+
+
+class _Results(NamedTuple):
+    """What the episodes measured: the deploy record's fields of that name."""
+
+    summary: EvalSummary
+    counts: Counts
+    counts_note: str
+    parity: ParityRecord
+    timing: Timing
+    quantization: list[QuantLayer] | None
 
 
 class _Run:
@@ -148,25 +159,25 @@ class _Run:
         self.wall = time.perf_counter() - wall
         self.summary = EvalSummary.of(results)
 
-    def results(self) -> dict[str, Any]:
-        """The record's summary, counts, parity, timing and quantisation, by field name."""
+    def results(self) -> _Results:
+        """The record's summary, counts, parity, timing and quantisation."""
         primary, steps = self.checked.primary, self.checked.parity.env_steps
         assert self.summary is not None
         quantization = None
         if primary.fixed is not None:
             quantization = [QuantLayer(**layer) for layer in primary.fixed.describe()]
-        return {
-            "summary": self.summary,
-            "counts": _counts(primary.counts),
-            "counts_note": COUNTS_NOTE,
-            "parity": ParityRecord(**self.checked.parity.as_dict()),
-            "timing": Timing(
+        return _Results(
+            summary=self.summary,
+            counts=_counts(primary.counts),
+            counts_note=COUNTS_NOTE,
+            parity=ParityRecord(**self.checked.parity.as_dict()),
+            timing=Timing(
                 startup_s=self.startup,
                 wall_s=self.wall,
                 ms_per_env_step=1000 * self.checked.step_seconds / max(steps, 1),
             ),
-            "quantization": quantization,
-        }
+            quantization=quantization,
+        )
 
 
 def _network(chain: Any) -> NetworkShape:
