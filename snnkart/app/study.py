@@ -38,7 +38,14 @@ from snnkart.envs.spec import ENV_REVISION
 from snnkart.envs.tracks import load_track
 from snnkart.errors import UsageError
 from snnkart.io import write_text
-from snnkart.report.study_record import STUDY, Curve, RunRecord, StudyRecord, WallClock
+from snnkart.report.study_record import (
+    STUDY,
+    Curve,
+    RunRecord,
+    StudyRecord,
+    StudySettings,
+    WallClock,
+)
 from snnkart.rl.config import TrainConfig, load_config
 
 if sys.version_info >= (3, 11):
@@ -284,7 +291,7 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
                for run, res in zip(runs, results, strict=True)]  # fmt: skip
     record = StudyRecord(
         schema=RECORD_SCHEMA,
-        study=study.model_dump(mode="json", by_alias=True),
+        study=StudySettings(**study.model_dump(mode="json", by_alias=True)),
         only=only,
         env_revision=ENV_REVISION,
         code=code_digest()[:20],

@@ -11,7 +11,14 @@ from typing import Any
 import numpy as np
 
 from snnkart.report.plots import _figure
-from snnkart.report.study_record import CellSummary, DeployedRun, RunRecord, Spread, StudyRecord
+from snnkart.report.study_record import (
+    CellSummary,
+    DeployedRun,
+    RunRecord,
+    Spread,
+    StudyRecord,
+    StudySettings,
+)
 
 COLOURS = {"ann": "#1f77b4", "snn": "#d62728"}
 
@@ -54,14 +61,14 @@ def _vs(ours: float | None, theirs: float | None, lower_is_better: bool = True) 
 
 def markdown(record: StudyRecord, original: dict[str, dict[str, float]]) -> str:
     study = record.study
-    n = study["finishes"]
-    lines = [f"# Study: {study['name']}", "",
-             f"{len(study['seeds'])} seeds per cell, at most {study['steps']:,} env steps per run. "
+    n = study.finishes
+    lines = [f"# Study: {study.name}", "",
+             f"{len(study.seeds)} seeds per cell, at most {study.steps:,} env steps per run. "
              "Medians over seeds with (min–max); `>cap`: not reached within the cap; "
              "\"k/n seeds\": only k of the n seeds got there. "
              f"\"{n} finishes\": the step at which the run's cumulative laps (finished training "
              f"episodes that started at the spawn) reached {n}. Evaluation: "
-             f"{study['eval_episodes']} seeded episodes, ANNs in torch, SNNs exported to NIR on "
+             f"{study.eval_episodes} seeded episodes, ANNs in torch, SNNs exported to NIR on "
              "the numpy reference in fixed point. ✓/✗: better/worse than the original (one run "
              "per cell; shown for small_S at 300 finishes).", ""]  # fmt: skip
     if any(r.eval_backend.startswith("torch (cuba") for r in record.runs):
@@ -75,10 +82,10 @@ def markdown(record: StudyRecord, original: dict[str, dict[str, float]]) -> str:
                   f"| env | ANN first finish | SNN first finish | ANN {n} finishes | "
                   f"SNN {n} finishes | SNN % of ANN | ANN eval | SNN eval | SNN spikes/step |",
                   "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
-        for env in study["envs"]:
+        for env in study.envs:
             # the original's numbers: its track and its mark of 300 finishes only
             comparable = Path(track).stem == "small_S" and n == 300
-            for variant in _variants(study):
+            for variant in study.variant_names:
                 by = {c.policy: c for c in cells
                       if (c.track, c.env, c.variant) == (track, env, variant)}  # fmt: skip
                 if by:
@@ -169,14 +176,9 @@ def _band(ax: Any, runs: list[RunRecord], key: str, colour: str, label: str) -> 
     ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")
 
 
-def _variants(study: dict[str, Any]) -> list[str]:
-    """The study's variant names; one unnamed variant outside an ablation."""
-    return list(study.get("variants") or {}) or [""]
-
-
-def _groups(study: dict[str, Any]) -> list[tuple[str, str]]:
+def _groups(study: StudySettings) -> list[tuple[str, str]]:
     """(policy, variant) of every band in a panel; an ablation colours them by variant."""
-    return [(p, v) for p in study["policies"] for v in _variants(study)]
+    return [(p, v) for p in study.policies for v in study.variant_names]
 
 
 def write_plots(record: StudyRecord, out: Path) -> list[Path]:
@@ -188,7 +190,7 @@ def write_plots(record: StudyRecord, out: Path) -> list[Path]:
     for track in record.tracks():
         for key, ylabel in (("finishes", "cumulative laps finished"),
                             ("return", "mean episodic return")):  # fmt: skip
-            envs = [e for e in study["envs"] if any(r.cell[:2] == (track, e) for r in runs)]
+            envs = [e for e in study.envs if any(r.cell[:2] == (track, e) for r in runs)]
             fig, axes = _figure(4.2 * len(envs), 3.4, ncols=len(envs))
             for ax, env in zip(axes[0], envs, strict=True):
                 for k, (policy, variant) in enumerate(_groups(study)):
@@ -198,7 +200,7 @@ def write_plots(record: StudyRecord, out: Path) -> list[Path]:
                         colour = COLOURS[policy] if not variant else f"C{k % 10}"
                         _band(ax, rs, key, colour, f"{policy.upper()} {variant}".strip())
                 if key == "finishes":
-                    ax.axhline(study["finishes"], color="grey", lw=0.8, ls=":")
+                    ax.axhline(study.finishes, color="grey", lw=0.8, ls=":")
                     ax.plot([], [], "o", color="grey", ms=3.5, label="stopped: learned")
                 ax.set_title(f"{env} / {Path(track).stem}")
                 ax.set_xlabel("training env steps")

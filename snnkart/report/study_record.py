@@ -7,12 +7,36 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind, key, omit_if
 
 STUDY = RecordKind("study", 1, rerun="snnkart study")
 SCHEMA_FILE = Path(__file__).with_name("study.schema.json")
+
+
+@dataclass(frozen=True)
+class StudySettings:
+    """The study config as it ran (:class:`snnkart.app.study.StudyConfig`, validated there)."""
+
+    schema: str
+    name: str
+    tracks: list[str]
+    envs: list[str]
+    policies: list[str]
+    seeds: list[int]
+    steps: int
+    finishes: int
+    eval_episodes: int
+    deploy_episodes: int = 0
+    eval_seed: int = 10_000
+    sets: list[str] = field(default_factory=list)
+    cells: dict[str, list[str]] = field(default_factory=dict)
+    variants: dict[str, list[str]] = field(default_factory=dict)
+
+    @property
+    def variant_names(self) -> list[str]:
+        """The variants' names; one unnamed variant outside an ablation."""
+        return list(self.variants) or [""]
 
 
 @dataclass(frozen=True)
@@ -126,7 +150,7 @@ class StudyRecord(Record):
     KIND = STUDY
 
     schema: str
-    study: dict[str, Any]
+    study: StudySettings
     only: list[str] | None = None
     env_revision: int
     code: str
@@ -139,4 +163,4 @@ class StudyRecord(Record):
 
     def tracks(self) -> list[str]:
         """The study's tracks that have runs in this record (all, unless it is a piece)."""
-        return [t for t in self.study["tracks"] if any(r.track == t for r in self.runs)]
+        return [t for t in self.study.tracks if any(r.track == t for r in self.runs)]
