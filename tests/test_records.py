@@ -289,3 +289,32 @@ def test_study_md_from_the_typed_record_is_what_it_was() -> None:
     record = StudyRecord.read(DATA / "study.json")
     assert markdown(record, ORIGINAL) == (DATA / "study.md").read_text()
     assert len(record.deployed) == 1 and {c.policy for c in record.cells} == {"ann", "snn"}
+
+
+def test_dict_annotations_are_counted_with_aliases_resolved(tmp_path: Path) -> None:
+    """``scripts/dict_annotations.py``: str-to-Any mappings in parameters, returns, variables
+    and fields, through module-level aliases (also aliases of aliases) and string annotations;
+    other mappings are not counted."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "dict_annotations", Path(__file__).parents[1] / "scripts" / "dict_annotations.py"
+    )
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    module = tmp_path / "m.py"
+    module.write_text(
+        "from typing import Any, Dict, Mapping, TypeAlias\n"
+        "import typing\n"
+        "Record = dict[str, Any]\n"
+        "Again: TypeAlias = 'Record'\n"
+        "Counts = dict[str, int]\n"
+        "def f(a: Record, b: Counts, c: 'Mapping[str, Any]') -> list[Again] | None: ...\n"
+        "def g(d: typing.Dict[str, typing.Any], e: dict[str, list[Any]]) -> Dict[int, Any]: ...\n"
+        "class C:\n"
+        "    x: dict[str, Any] | None = None\n"
+        "    y: Mapping[str, str] = {}\n"
+        "    z: list['dict[str, Any]'] = []\n"
+    )  # counted: a, c, f's return, d, x, z (not b, e, g's return, y)
+    assert script.count(module) == 6
