@@ -113,8 +113,8 @@ def to_data(record: Any) -> Any:
         out: dict[str, Any] = {}
         for f in dataclasses.fields(record):
             value = getattr(record, f.name)
-            omit_if = f.metadata.get("omit_if")
-            if (value is None and f.metadata.get("omit_none")) or (omit_if and omit_if(record)):
+            test = f.metadata.get("omit_if")
+            if (value is None and f.metadata.get("omit_none")) or (test and test(record)):
                 continue
             out[f.metadata.get("key", f.name)] = to_data(value)
         return out
