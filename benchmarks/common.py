@@ -40,4 +40,4 @@ def training_seconds(run_dir: Path) -> tuple[float, int] | None:
     if not (run_dir / "metrics.jsonl").is_file():
         return None
     c = curve(run_dir)
-    return sum(c["seconds"]), len(c["steps"])
+    return sum(c.seconds), len(c.steps)

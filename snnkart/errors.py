@@ -65,17 +65,19 @@ class DeployError(SnnkartError, ValueError):
 
 
 class ParityError(DeployError):
-    """The backend differed from its same-arithmetic reference; ``record`` holds the run."""
+    """The backend differed from its same-arithmetic reference; ``record`` holds the run (a
+    :class:`snnkart.contract.deploy_record.DeployRecord`: this module sits below it)."""
 
-    def __init__(self, message: str, record: dict[str, Any]) -> None:
+    def __init__(self, message: str, record: Any) -> None:
         super().__init__(message)
         self.record = record
 
 
 class DeployWriteError(DeployError):
-    """The run finished but its record could not be written; ``record`` holds it."""
+    """The run finished but its record could not be written; ``record`` holds it (a
+    :class:`snnkart.contract.deploy_record.DeployRecord`)."""
 
-    def __init__(self, message: str, record: dict[str, Any]) -> None:
+    def __init__(self, message: str, record: Any) -> None:
         super().__init__(message)
         self.record = record
 

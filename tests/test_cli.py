@@ -142,6 +142,6 @@ def test_app_workflows_report_through_the_reporter_and_never_print(tmp_path: Pat
     record = run_eval(fixture, 1, 10_000, None, False, None, tmp_path / "eval.json", reporter)
     out, err = capfd.readouterr()
     assert out == "" and err == ""
-    assert record["summary"]["episodes"] == 1 and (tmp_path / "eval.json").is_file()
+    assert record.summary.episodes == 1 and (tmp_path / "eval.json").is_file()
     assert any("success" in m for m in reporter.messages)
     assert reporter.messages[-1] == f"results written to {tmp_path / 'eval.json'}"

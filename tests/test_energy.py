@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import AnnCounts, Network, SnnCounts, host_ops
 from snnkart.energy.pricing import Comparison, ann_terms, snn_terms, total
 from snnkart.energy.profiles import BUILTIN, load_profile, parse_profile
@@ -36,12 +37,19 @@ def _tiny_record() -> dict[str, Any]:
         "counts": {"env_steps": 2, "spikes": [6, 2], "synops": [12, 4], "neuron_updates": [16, 8],
                    "pipeline_overhead": {"spikes": [2, 0], "synops": [4, 0],
                                          "neuron_updates": [8, 4]}},
-        "episodes": [{"seed": 0}],
+        "episodes": [],
     }  # fmt: skip
 
 
+def _counts(parts: dict[str, Any]) -> SnnCounts:
+    """The counts of a deploy record made of ``parts`` over a real record's other fields."""
+    data = {**json.loads((ROOT / "tests/data/records/deploy-nir-ref-fixed.json").read_text()),
+            **parts}  # fmt: skip
+    return SnnCounts.of_deploy(DeployRecord.from_json(json.dumps(data)))
+
+
 def test_counts_and_energy_of_a_hand_computed_network() -> None:
-    snn = SnnCounts.of_deploy(_tiny_record())
+    snn = _counts(_tiny_record())
     assert snn.spikes == (3.0, 1.0)
     assert snn.synops == (6.0, 0.0)  # the last layer's fan-out is the host's readout
     assert snn.neuron_updates == (8.0, 4.0)
@@ -79,7 +87,7 @@ def test_counts_of_three_layers_rate_encoding_and_continuous_actions() -> None:
     record["counts"].update(spikes=[6, 4, 2], synops=[18, 8, 4], neuron_updates=[16, 12, 8],
                             pipeline_overhead={"spikes": [0, 0, 0], "synops": [0, 0, 0],
                                                "neuron_updates": [0, 0, 0]})  # fmt: skip
-    snn = SnnCounts.of_deploy(record)
+    snn = _counts(record)
     assert snn.synops == (9.0, 4.0, 0.0) and snn.net.chip_synapses == 4 * 3 + 3 * 2
     host = {op: sum(h.count for h in snn.host if h.op == op) for op in ("mac", "add", "mult")}
     # rate: 9 encode adds + 2x3 compares + 2x3x4 dense first-layer adds + 2x4 biases; readout
@@ -93,7 +101,7 @@ def test_break_even_without_spikes_is_none_and_json_safe() -> None:
     record = _tiny_record()
     record["counts"].update(spikes=[0, 0], synops=[0, 0])
     record["counts"]["pipeline_overhead"].update(spikes=[0, 0], synops=[0, 0])
-    snn = SnnCounts.of_deploy(record)
+    snn = _counts(record)
     fp32 = load_profile("horowitz45_fp32")
     be = Comparison(
         snn, AnnCounts((3, 64, 64, 2)), load_profile("truenorth"), fp32, fp32
@@ -103,7 +111,7 @@ def test_break_even_without_spikes_is_none_and_json_safe() -> None:
 
 
 def test_break_even_solves_for_the_spike_density() -> None:
-    snn = SnnCounts.of_deploy(_tiny_record())
+    snn = _counts(_tiny_record())
     fp32, truenorth = load_profile("horowitz45_fp32"), load_profile("truenorth")
     ann = AnnCounts((3, 64, 64, 2))  # 4,352 MACs: dear enough for the tiny SNN to win
     cmp = Comparison(snn, ann, truenorth, fp32, fp32)
@@ -235,21 +243,32 @@ def report(deployed: Path, ann_run: Path, tmp_path_factory: pytest.TempPathFacto
 
 
 def _sweep_from(deployed: Path) -> dict[str, Any]:
-    """A two-variant study record made of the deployment's own counts (and half of them)."""
-    from snnkart.app.study_summary import counts_per_step
+    """A two-variant study record (the committed tiny study's, its SNN runs replaced) made of
+    the deployment's own counts (and half of them)."""
+    import dataclasses
 
-    record = json.loads((deployed / "deploy.json").read_text())
+    from snnkart.contract.deploy_record import DeployRecord, StepCounts
+    from snnkart.contract.records import to_data
+    from snnkart.report.study_record import StudyRecord
+
+    record = DeployRecord.read(deployed / "deploy.json")
+    study = StudyRecord.read(ROOT / "tests/data/records/study.json")
+    snn = next(r for r in study.runs if r.policy == "snn")
     runs = []
     for variant, k in (("measured", 1.0), ("half", 0.5)):
-        counts = counts_per_step(record)
-        for key in ("spikes_per_step", "synops_per_step"):
-            counts[key] = [k * s for s in counts[key]]
-        runs.append({
-            "variant": variant, "env": "grid", "policy": "snn", "seed": 1,
-            "eval_success_rate": record["summary"]["success_rate"],
-            "eval_counts_per_step": counts,
-        })  # fmt: skip
-    return {"schema": "snnkart/study/v1", "machine": {"commit": "test"}, "runs": runs}
+        counts = StepCounts.of(record)
+        counts = dataclasses.replace(
+            counts,
+            spikes_per_step=[k * x for x in counts.spikes_per_step],
+            synops_per_step=[k * x for x in counts.synops_per_step],
+        )
+        runs.append(dataclasses.replace(
+            snn, variant=variant, seed=1, eval_success_rate=record.summary.success_rate,
+            eval_counts_per_step=counts,
+        ))  # fmt: skip
+    data = to_data(dataclasses.replace(study, runs=runs))
+    data["machine"]["commit"] = "test"
+    return data
 
 
 @pytest.mark.timeout(600)

@@ -45,7 +45,7 @@ def test_a_reference_deploy_reads_the_policy_once(
     """nir-ref fixed runs beside its float32 reference: one read, one quantisation."""
     calls = _count_loads(monkeypatch)
     record = run_deploy(DeployRequest(POLICY, "nir-ref", precision, episodes=1, seed=3))
-    assert record["parity"]["env_steps"] > 0
+    assert record.parity.env_steps > 0
     assert calls == {"nir.read": 1, "quantize": quantised}
 
 
@@ -56,6 +56,6 @@ def test_a_lava_deploy_reads_the_policy_once(monkeypatch: pytest.MonkeyPatch) ->
     quantisation (before: four reads and two)."""
     calls = _count_loads(monkeypatch)
     record = run_deploy(DeployRequest(POLICY, "lava-sim", "fixed", episodes=1, seed=3))
-    assert record["parity"]["same_arithmetic_mismatched_windows"] == 0
-    assert record["parity"]["env_steps"] > 0
+    assert record.parity.same_arithmetic_mismatched_windows == 0
+    assert record.parity.env_steps > 0
     assert calls == {"nir.read": 1, "quantize": 1}

@@ -4,6 +4,7 @@ nothing that determines a run changed and retrained when something did."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -21,6 +22,7 @@ from snnkart.app.study_eval import DEPLOY_DIR, median_seed
 from snnkart.app.study_summary import pct_of_ann, spread, summarise
 from snnkart.errors import UsageError
 from snnkart.report.study import _band
+from snnkart.report.study_record import Curve, RunRecord, Spread, StudyRecord
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["ppo.num_envs=2", "ppo.rollout_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2",
@@ -81,8 +83,8 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
         assert evaluation["summary"]["episodes"] == 2
         assert r["eval_success_rate"] == evaluation["summary"]["success_rate"]
     (deployed,) = record["deployed"]  # the SNN cell's median seed on Lava, fixed point
-    snns = [r for r in runs if r["policy"] == "snn"]
-    assert deployed["run"] == median_seed(snns)["name"] and deployed["episodes"] == 2
+    snns = [r for r in StudyRecord.read(out / "study.json").runs if r.policy == "snn"]
+    assert deployed["run"] == median_seed(snns).name and deployed["episodes"] == 2
     result = json.loads((out / "runs" / deployed["run"] / DEPLOY_DIR / "deploy.json").read_text())
     assert (result["backend"], result["precision"]) == ("lava-sim", "fixed")
     assert result["parity"]["same_arithmetic_reference"] is not None
@@ -125,43 +127,51 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
 
 
 def test_spreads_and_the_snn_against_the_ann_by_hand() -> None:
-    assert spread([100, None, 300]) == {
-        "median": 300.0,
-        "min": 100,
-        "max": None,
-        "reached": 2,
-        "of": 3,
-    }
-    assert spread([None, None, 300])["median"] is None  # the median run never got there
-    assert spread([4, 1, 3, 2])["median"] == 2.5
-    ann = {"steps_to_finishes": spread([400_000, 420_000, 380_000])}
-    snn = {"steps_to_finishes": spread([500_000, 400_000, None])}
-    assert pct_of_ann(ann, snn) == pytest.approx(100 * 400_000 / 500_000)
-    assert pct_of_ann(ann, {"steps_to_finishes": spread([None, None, 1])}) is None
+    assert spread([100, None, 300]) == Spread(median=300.0, min=100, max=None, reached=2, of=3)
+    assert spread([None, None, 300]).median is None  # the median run never got there
+    assert spread([4, 1, 3, 2]).median == 2.5
     records = [
-        {"track": "t", "env": "grid", "policy": p, "seed": s, "first_finish_step": ff,
-         "steps_to_finishes": st, "eval_success_rate": ev, "train_seconds": 1.0, "steps": 10}
+        _run(p, s, first=ff, steps_to=st, success=ev)
         for p, s, ff, st, ev in [("ann", 1, 10, 100, 1.0), ("ann", 2, 20, 200, 0.5),
                                  ("snn", 1, 30, 400, 0.9), ("snn", 2, None, None, 0.0)]
     ]  # fmt: skip
-    cells = {c["policy"]: c for c in summarise(records, None)}
-    assert cells["ann"]["steps_to_finishes"]["median"] == 150.0
-    assert cells["snn"]["steps_to_finishes"]["median"] is None  # (400 + inf) / 2
-    assert cells["snn"]["snn_pct_of_ann"] is None
-    assert cells["snn"]["eval_success_rate"]["median"] == pytest.approx(0.45)
-    assert steps_to(3, {"steps": [10, 20, 30], "finishes": [0, 3, 5]}) == 20
-    assert steps_to(9, {"steps": [10, 20, 30], "finishes": [0, 3, 5]}) is None
-    assert not math.isnan(cells["ann"]["train_seconds"]["median"])
+    cells = {c.policy: c for c in summarise(records, None)}
+    assert cells["ann"].steps_to_finishes.median == 150.0
+    assert cells["snn"].steps_to_finishes.median is None  # (400 + inf) / 2
+    assert cells["snn"].snn_pct_of_ann is None
+    assert cells["snn"].eval_success_rate.median == pytest.approx(0.45)
+    ann = dataclasses.replace(cells["ann"], steps_to_finishes=spread([400_000, 420_000, 380_000]))
+    snn = dataclasses.replace(cells["snn"], steps_to_finishes=spread([500_000, 400_000, None]))
+    assert pct_of_ann(ann, snn) == pytest.approx(100 * 400_000 / 500_000)
+    never = dataclasses.replace(snn, steps_to_finishes=spread([None, None, 1]))
+    assert pct_of_ann(ann, never) is None
+    assert steps_to(3, Curve([10, 20, 30], [0, 3, 5], [None] * 3)) == 20
+    assert steps_to(9, Curve([10, 20, 30], [0, 3, 5], [None] * 3)) is None
+    median = cells["ann"].train_seconds.median
+    assert median is not None and not math.isnan(median)
+
+
+def _run(policy: str = "snn", seed: int = 1, first: int | None = None,
+         steps_to: int | None = None, success: float = 0.0, curve: Curve | None = None,
+         stopped_early: bool = False) -> RunRecord:  # fmt: skip
+    """A study's run record with what a test sets, the rest plain."""
+    return RunRecord(
+        name=f"s{seed}", track="t", env="grid", policy=policy, seed=seed, status="done",
+        steps=10, stopped_early=stopped_early, first_finish_step=first,
+        steps_to_finishes=steps_to, training_finishes=0, training_episodes=0,
+        train_seconds=1.0, eval_success_rate=success, eval_mean_return=0.0, eval_crashes=0,
+        curve=curve or Curve([], [], []),
+    )  # fmt: skip
 
 
 def test_the_median_seed_by_hand() -> None:
-    def run(seed: int, steps: int | None) -> dict:
-        return {"seed": seed, "steps_to_finishes": steps, "name": f"s{seed}"}
+    def run(seed: int, steps: int | None) -> RunRecord:
+        return _run(seed=seed, steps_to=steps)
 
     cell = [run(1, 300), run(2, None), run(3, 100), run(4, 200), run(5, None)]
-    assert median_seed(cell)["seed"] == 1  # 100, 200, [300], never, never
-    assert median_seed(cell[:4])["seed"] == 4  # 100, [200], 300, never
-    assert median_seed([run(2, 100), run(1, 100)])["seed"] == 1
+    assert median_seed(cell).seed == 1  # 100, 200, [300], never, never
+    assert median_seed(cell[:4]).seed == 4  # 100, [200], 300, never
+    assert median_seed([run(2, 100), run(1, 100)]).seed == 1
 
 
 def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:
@@ -206,8 +216,8 @@ def test_the_committed_studies_plan(path: Path) -> None:
 
 def test_the_median_is_drawn_while_every_seed_trains_and_each_seed_to_its_end() -> None:
     runs = [
-        {"curve": {"steps": [1, 2, 3, 4], "finishes": [0, 10, 20, 30]}, "stopped_early": False},
-        {"curve": {"steps": [1, 2], "finishes": [2, 12]}, "stopped_early": True},
+        _run(curve=Curve([1, 2, 3, 4], [0, 10, 20, 30], [None] * 4), stopped_early=False),
+        _run(curve=Curve([1, 2], [2, 12], [None] * 2), stopped_early=True),
     ]
     fig, ax = plt.subplots()
     _band(ax, runs, "finishes", "blue", "ANN")

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from snnkart.app.report import build_report
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import SnnCounts
 from snnkart.energy.pricing import snn_terms, total
 from snnkart.energy.profiles import load_profile
@@ -19,6 +20,7 @@ from snnkart.errors import ReportError
 
 ROOT = Path(__file__).resolve().parents[1]
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
+OLD_STUDY = Path(__file__).parent / "data" / "records" / "study-v1.json"
 TINY = ["ppo.num_envs=2", "ppo.rollout_steps=64", "ppo.update_epochs=1", "ppo.num_minibatches=2"]
 EVAL = "study-eval-nir-ref-fixed"
 
@@ -93,10 +95,10 @@ def test_report_sweep_prices_each_run_of_a_study_as_its_deployment(
         ("T2", 1, 2), ("T4_r0.05", 1, 4)]  # fmt: skip
     for point in section["points"]:
         run_dir = sweep / "runs" / f"small_S-grid-snn-{point['point']}-s1"
-        deploy = json.loads((run_dir / EVAL / "deploy.json").read_text())
+        deploy = DeployRecord.read(run_dir / EVAL / "deploy.json")
         expected = total(snn_terms(SnnCounts.of_deploy(deploy), chip, host))
         assert point["energy_pj"] == pytest.approx(expected, rel=1e-12)
-        assert point["success_rate"] == deploy["summary"]["success_rate"]
+        assert point["success_rate"] == deploy.summary.success_rate
 
 
 @pytest.mark.timeout(600)
@@ -111,12 +113,13 @@ def test_report_sweep_refuses_an_old_or_foreign_file_in_one_line(
     assert ("written by bench_sparsity, an older snnkart; run `snnkart study "
             "studies/sparsity.toml` again") in result.stderr  # fmt: skip
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    current = json.loads((sweep / "study.json").read_text())
+    no_counts = {**current, "runs": [{**r, "eval_counts_per_step": None} for r in current["runs"]]}
     cases = [
         ({"schema": "snnkart/deploy/v1"}, "not a study.json (schema 'snnkart/deploy/v1')"),
         ([1, 2], "not a study.json"),
-        ({"schema": "snnkart/study/v1", "machine": {}, "runs": [{"eval_counts_per_step": None}]},
-         "no run of this study has counts"),
-        ({"schema": "snnkart/study/v1", "machine": {}, "runs": [{"eval_spikes_per_step": 9.0}]},
+        (no_counts, "no run of this study has counts"),
+        (json.loads(OLD_STUDY.read_text()),  # v1, written before the counts per env step
          "written by an older snnkart (no counts per env step); run `snnkart study`"),
     ]  # fmt: skip
     for data, refusal in cases:

@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.errors import DeployWriteError, ParityError
 
 if TYPE_CHECKING:
     from snnkart.eval.request import DeployRequest
 
 
-def run_deploy_reported(request: DeployRequest, reporter: Reporter) -> dict[str, Any]:
+def run_deploy_reported(request: DeployRequest, reporter: Reporter) -> DeployRecord:
     """:func:`snnkart.eval.deploy.run_deploy` with progress, then its summary. A parity
     mismatch or a failed write is reported with the summary, then raised."""
     from snnkart.eval.deploy import run_deploy
@@ -33,7 +34,7 @@ def run_deploy_reported(request: DeployRequest, reporter: Reporter) -> dict[str,
     return record
 
 
-def report_summary(record: dict[str, Any], out: Path | None, reporter: Reporter) -> None:
+def report_summary(record: DeployRecord, out: Path | None, reporter: Reporter) -> None:
     from snnkart.eval.deploy import summary_lines
 
     for line in summary_lines(record):

@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 from snnkart import faults
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
+from snnkart.contract.eval_record import EVAL_SCHEMA, EvalRecord
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.envs.tracks import track_label
 from snnkart.errors import UsageError
@@ -33,9 +35,9 @@ def run_eval(
     out: Path | None,
     reporter: Reporter,
     track: str | None = None,
-) -> dict[str, Any]:
+) -> EvalRecord:
     """Evaluate a run's torch policy; write and return the eval record."""
-    from snnkart.eval.episodes import EvalSummary, write_eval
+    from snnkart.eval.episodes import EvalSummary
     from snnkart.eval.video import check_video_path
     from snnkart.rl.trained import TorchPredictor, load_run
 
@@ -53,16 +55,19 @@ def run_eval(
     results = _episodes(env, predictor, episodes, seed, video, reporter)
     summary = EvalSummary.of(results)
     path = out or run_dir / "eval.json"
-    extra = {
-        "run": str(run_dir),
-        "checkpoint": str(run.checkpoint),
-        "global_step": run.meta.get("global_step"),
-        "policy": run.config.policy,
-        "env": run.config.env,
+    record = EvalRecord(
+        schema=EVAL_SCHEMA,
+        run=str(run_dir),
+        checkpoint=str(run.checkpoint),
+        global_step=run.meta.get("global_step"),
+        policy=run.config.policy,
+        env=run.config.env,
         **choice.record(),
-        "first_seed": seed,
-    }
-    record = write_eval(path, summary, results, extra)
+        first_seed=seed,
+        summary=summary,
+        episodes=results,
+    )
+    record.write(path)
     reporter.message(
         f"{run.config.policy.upper()} {run.config.env}/{choice.label} "
         f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: {_describe(summary)}"
@@ -141,7 +146,7 @@ def _describe(summary: Any) -> str:
 
 def run_eval_exported(
     target: Path, checkpoint: Path | None, request: DeployRequest, reporter: Reporter
-) -> dict[str, Any]:
+) -> DeployRecord:
     """Evaluate on a spiking backend: ``target`` is a NIR file, or a run directory exported to a
     temporary NIR file first; results go to the request's ``out`` or
     ``eval-<backend>-<precision>/`` beside the target."""

@@ -14,13 +14,14 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.reporter import Reporter
 from snnkart.app.worker import TrainJob
+from snnkart.contract.records import OMIT_NONE, Record, RecordKind
 from snnkart.errors import UsageError
 from snnkart.rl.config import TrainConfig
 
@@ -47,6 +48,24 @@ class RunResult:
     error: str | None = None
     stopped_early: bool = False
     """The run's ``stop`` rule ended it before ``total_steps``."""
+
+
+LAUNCH = RecordKind("launch", 1, rerun="snnkart study", untagged=1)
+"""``launch.json``; v1 files carry no ``schema`` tag (they predate the tags): v2 will."""
+SCHEMA_FILE = Path(__file__).with_name("launch.schema.json")
+
+
+@dataclass(frozen=True, kw_only=True)
+class LaunchRecord(Record):
+    """``launch.json`` (``snnkart/launch/v1``): one result per run of a launcher's list, and
+    whether the launch was interrupted; ``backend`` is ``ray`` for Ray Tune, absent for the
+    local pool."""
+
+    KIND = LAUNCH
+
+    backend: str | None = field(default=None, metadata=OMIT_NONE)
+    interrupted: bool
+    runs: list[RunResult]
 
 
 def complete(run_dir: Path, spec: RunSpec) -> bool:
@@ -138,7 +157,4 @@ class LocalPool:
         return result_of(spec, run_dir, status, end.seconds, error)
 
     def _write(self, results: list[RunResult], interrupted: bool) -> None:
-        from snnkart.io import write_json
-
-        write_json(self.out / "launch.json",
-                   {"interrupted": interrupted, "runs": [asdict(r) for r in results]})  # fmt: skip
+        LaunchRecord(interrupted=interrupted, runs=results).write(self.out / "launch.json")

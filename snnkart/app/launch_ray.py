@@ -23,11 +23,10 @@ import os
 import signal
 import time
 from collections.abc import Iterator
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from snnkart.app.launch import RunResult, RunSpec, complete, result_of
+from snnkart.app.launch import LaunchRecord, RunResult, RunSpec, complete, result_of
 from snnkart.errors import UsageError
 from snnkart.faults import Interrupted
 from snnkart.io import write_json
@@ -175,8 +174,9 @@ def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
         )
         for s in specs
     ]
-    write_json(out / "launch.json", {"backend": "ray", "interrupted": signum is not None,
-                                     "runs": [asdict(r) for r in results]})  # fmt: skip
+    LaunchRecord(backend="ray", interrupted=signum is not None, runs=results).write(
+        out / "launch.json"
+    )
     if signum is not None:
         raise Interrupted(signum)
     return results

@@ -24,6 +24,7 @@ from typing import Any
 
 from snnkart import faults
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.io import write_json
 
 DEMO_ENV = "grid"
@@ -152,7 +153,7 @@ def _quantisation(
 
 def _deploy(
     nir_path: Path, out: Path, lava_episodes: int, reporter: Reporter
-) -> dict[str, dict[str, Any]]:
+) -> dict[str, DeployRecord]:
     from snnkart.app.deploy import run_deploy_reported
     from snnkart.eval.request import DeployRequest
 

@@ -24,7 +24,7 @@ def git_commit(cwd: Path = SOURCE) -> str:
     return head + ("-dirty" if dirty else "")
 
 
-def machine_info() -> dict[str, object]:
+def machine_info() -> dict[str, str | int | None]:
     """The date, commit, host, CPU model and core count, Python and platform."""
     cpu = platform.processor()
     try:

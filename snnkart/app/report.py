@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from snnkart.app.reporter import Reporter
+from snnkart.contract.deploy_record import DeployRecord
+from snnkart.contract.records import RecordError, to_data
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import Comparison, ann_terms, breakdown, snn_terms, total
 from snnkart.energy.profiles import (
@@ -21,13 +23,14 @@ from snnkart.energy.profiles import (
     load_profile,
 )
 from snnkart.errors import ReportError
+from snnkart.report.study_record import STUDY, StudyRecord
 
 REPORT_SCHEMA = "snnkart/report/v1"
 DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
 
-def read_deploy(deploy_dir: Path) -> dict[str, Any]:
+def read_deploy(deploy_dir: Path) -> DeployRecord:
     path = deploy_dir / "deploy.json" if deploy_dir.is_dir() else deploy_dir
     if not path.is_file():
         raise ReportError(
@@ -35,12 +38,9 @@ def read_deploy(deploy_dir: Path) -> dict[str, Any]:
             "snnkart deploy --out DIR"
         )
     try:
-        record = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ReportError(f"{path}: not a readable deploy.json ({exc}); deploy again") from exc
-    if not str(record.get("schema", "")).startswith("snnkart/deploy/"):
-        raise ReportError(f"{path}: not a snnkart deploy record (schema {record.get('schema')!r})")
-    return record
+        return DeployRecord.read(path)
+    except RecordError as exc:
+        raise ReportError(str(exc)) from exc
 
 
 def _profiles(
@@ -67,50 +67,50 @@ def _memory_first(digital: list[Profile]) -> list[Profile]:
     return sorted(digital, key=lambda p: p["weight_read"] == 0)
 
 
-def _ann_run(ann_dir: Path, record: dict[str, Any]) -> tuple[AnnCounts, dict[str, Any]]:
+def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, Any]]:
     """The user's ANN run: its widths, and its task performance on the deployment's episodes."""
     from snnkart.eval.episodes import EvalSummary, run_episodes
     from snnkart.rl.trained import TorchPredictor, load_run
 
     run = load_run(ann_dir)
     widths = run.actor_widths()
-    env = record["env"]
-    if run.config.env != env["env"]:
+    env = record.env
+    if run.config.env != env.env:
         raise ReportError(
-            f"--ann {ann_dir} is a {run.config.env} run, the deployment drove {env['env']}; "
+            f"--ann {ann_dir} is a {run.config.env} run, the deployment drove {env.env}; "
             "compare policies of the same env"
         )
     trained = run.track_record()
-    if trained["sha256"] != env.get("track_sha256"):
+    if trained["sha256"] != env.track_sha256:
         raise ReportError(
             f"--ann {ann_dir} was trained on track {trained['name']}, the deployment drove "
-            f"{env.get('track')}; compare on the same track"
+            f"{env.track}; compare on the same track"
         )
     gym_env = run.config.make_env(track=run.track)
-    episodes = len(record.get("episodes", [])) or 1
+    episodes = len(record.episodes) or 1
     try:
-        results = run_episodes(gym_env, TorchPredictor(run, seed=record["first_seed"]),
-                               episodes, record["first_seed"])  # fmt: skip
+        results = run_episodes(gym_env, TorchPredictor(run, seed=record.first_seed),
+                               episodes, record.first_seed)  # fmt: skip
     finally:
         gym_env.close()
     summary = EvalSummary.of(results)
     steps = sum(r.length for r in results)
     task = {
         "run": str(ann_dir), "global_step": run.meta.get("global_step"),
-        "episodes": episodes, "first_seed": record["first_seed"],
+        "episodes": episodes, "first_seed": record.first_seed,
         "success_rate": summary.success_rate, "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return, "steps_per_episode": steps / episodes,
     }  # fmt: skip
     return AnnCounts(widths, run.config.action_mode, "ANN run"), task
 
 
-def _snn_section(snn: SnnCounts, record: dict[str, Any]) -> dict[str, Any]:
-    net, s = snn.net, record["summary"]
+def _snn_section(snn: SnnCounts, record: DeployRecord) -> dict[str, Any]:
+    net, s = snn.net, record.summary
     return {
         "task": {
-            "success_rate": s["success_rate"],
-            "mean_lap_time": s["mean_lap_time"],
-            "mean_return": s["mean_return"],
+            "success_rate": s.success_rate,
+            "mean_lap_time": s.mean_lap_time,
+            "mean_return": s.mean_return,
             "episodes": snn.episodes,
             "steps_per_episode": snn.steps_per_episode,
         },
@@ -132,8 +132,8 @@ def _snn_section(snn: SnnCounts, record: dict[str, Any]) -> dict[str, Any]:
         "latency": {
             "logical_steps": net.num_steps,
             "lava_steps_per_action": net.num_steps + net.depth,
-            "ms_per_env_step": record.get("timing", {}).get("ms_per_env_step"),
-            "backend": record["backend"],
+            "ms_per_env_step": record.timing.ms_per_env_step,
+            "backend": record.backend,
         },
     }
 
@@ -180,42 +180,42 @@ def _per_return(energy: float, mean_return: float) -> float | None:
     return energy / mean_return if mean_return > 0 else None
 
 
-STUDY_RECORD = "snnkart/study/v"
-"""The schema tag of a study record (``study.json``), any version."""
-
-
-def _read_sweep(path: Path) -> dict[str, Any]:
+def _read_sweep(path: Path) -> StudyRecord:
     """A study record (``snnkart study``'s ``study.json``), refused with a one-line reason."""
     try:
         data = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise ReportError(f"--sweep {path}: not a readable study.json ({exc})") from exc
-    if not isinstance(data, dict):
-        raise ReportError(f"--sweep {path}: not a study.json (written by snnkart study)")
-    if data.get("benchmark") == "bench_sparsity":
+    if isinstance(data, dict) and data.get("benchmark") == "bench_sparsity":
         raise ReportError(
             f"--sweep {path}: written by bench_sparsity, an older snnkart; run "
             "`snnkart study studies/sparsity.toml` again and pass its study.json"
         )
-    if not str(data.get("schema", "")).startswith(STUDY_RECORD):
+    if not isinstance(data, dict) or not str(data.get("schema", "")).startswith(
+        STUDY.tag_of(0)[:-1]
+    ):
+        schema = data.get("schema") if isinstance(data, dict) else None
         raise ReportError(
-            f"--sweep {path}: not a study.json (schema {data.get('schema')!r}); pass the "
+            f"--sweep {path}: not a study.json (schema {schema!r}); pass the "
             "study.json of `snnkart study`"
         )
-    return data
+    try:
+        return StudyRecord.from_json(json.dumps(data), f"--sweep {path}")
+    except RecordError as exc:
+        raise ReportError(str(exc)) from None
 
 
 def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
     """A study's SNN runs, priced: each run's energy per inference on ``chip`` (host work on
     ``host``) from the counts of its evaluation on the reference, and the 64-64 ANN's on each
     digital profile. A run's point is its variant (its cell without variants)."""
-    data = _read_sweep(path)
-    runs = [r for r in data.get("runs", []) if r.get("eval_counts_per_step")]
-    if data.get("runs") and all("eval_counts_per_step" not in r for r in data["runs"]):
+    record = _read_sweep(path)
+    if record.schema == STUDY.tag_of(1):
         raise ReportError(
             f"--sweep {path}: written by an older snnkart (no counts per env step); run "
             "`snnkart study` with its config again (runs and evaluations are reused)"
         )
+    runs = [r for r in record.runs if r.eval_counts_per_step is not None]
     if not runs:
         raise ReportError(
             f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "
@@ -223,39 +223,41 @@ def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> 
         )
     points = []
     for run in runs:
-        counts = run["eval_counts_per_step"]
+        counts = run.eval_counts_per_step
+        assert counts is not None
         points.append({
-            "point": run.get("variant") or f"{run['env']}-{run['policy']}", "seed": run["seed"],
-            "num_steps": counts["num_steps"], "sizes": counts["sizes"],
-            "success_rate": run["eval_success_rate"],
+            "point": run.variant or f"{run.env}-{run.policy}", "seed": run.seed,
+            "num_steps": counts.num_steps, "sizes": counts.sizes,
+            "success_rate": run.eval_success_rate,
             "energy_pj": total(snn_terms(SnnCounts.of_sweep(counts), chip, host)),
         })  # fmt: skip
-    counts = runs[0]["eval_counts_per_step"]
-    net = counts["network"]
-    obs_dim = net["n_in"] // (counts.get("population") or 1)
-    ann = AnnCounts((obs_dim, 64, 64, net["n_out"]))
+    first = runs[0].eval_counts_per_step
+    assert first is not None
+    obs_dim = first.network.n_in // (first.population or 1)
+    ann = AnnCounts((obs_dim, 64, 64, first.network.n_out))
     ann_pj = {f"64-64 on {d.name}": total(ann_terms(ann, d)) for d in digital}
-    envs = sorted({r["env"] for r in runs})
-    return {"file": str(path), "env": ", ".join(envs), "commit": data["machine"].get("commit"),
+    envs = sorted({r.env for r in runs})
+    commit = (record.machine or {}).get("commit")
+    return {"file": str(path), "env": ", ".join(envs), "commit": commit,
             "profile": chip.name, "host_profile": host.name, "points": points,
             "ann_64_64_pj": ann_pj}  # fmt: skip
 
 
-def _deploy_section(record: dict[str, Any], deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
+def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
     """Where the counts come from: the deployment, its env and track, and its parity."""
     return {
         "file": str(deploy_dir),
-        "backend": record["backend"],
-        "precision": record["precision"],
-        "nir_file": record.get("nir_file"),
-        "env": record["env"]["env"],
-        "track": record["env"].get("track"),
-        "track_given": record["env"].get("track_given"),
-        "track_source": record["env"].get("track_source"),
+        "backend": record.backend,
+        "precision": record.precision,
+        "nir_file": record.nir_file,
+        "env": record.env.env,
+        "track": record.env.track,
+        "track_given": record.env.track_given,
+        "track_source": record.env.track_source,
         "episodes": snn.episodes,
         "env_steps": snn.env_steps,
-        "first_seed": record["first_seed"],
-        "parity": record.get("parity"),
+        "first_seed": record.first_seed,
+        "parity": to_data(record.parity),
     }
 
 
@@ -274,7 +276,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
     }  # fmt: skip
     if ann_dir is not None:
         anns["run"] = _ann_run(ann_dir, record)
-    success = record["summary"]["success_rate"]
+    success = record.summary.success_rate
     return {
         "schema": REPORT_SCHEMA,
         "deploy": _deploy_section(record, deploy_dir, snn),
@@ -295,7 +297,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
             for p in [*chips, *digital, *([host_profile] if host_profile else [])]
         },
         "comparisons": _comparisons(
-            snn, anns, chips, digital, host_profile, record["summary"]["mean_return"]
+            snn, anns, chips, digital, host_profile, record.summary.mean_return
         ),
         "sensitivity": [
             {

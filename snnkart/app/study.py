@@ -15,6 +15,7 @@ key differs is set aside (renamed) and trained again.
 
 from __future__ import annotations
 
+import dataclasses
 import fnmatch
 import hashlib
 import itertools
@@ -23,7 +24,6 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 from pydantic import ValidationError
 
@@ -31,12 +31,20 @@ from snnkart.app.launch import LocalPool, RunResult, RunSpec
 from snnkart.app.protocol import data_problem
 from snnkart.app.provenance import machine_info
 from snnkart.app.reporter import Reporter
-from snnkart.app.study_eval import deploy_median_seeds, eval_backend, evaluate
+from snnkart.app.study_eval import Evaluation, deploy_median_seeds, eval_backend, evaluate
 from snnkart.app.study_types import STUDY_SCHEMA, Run, StudyConfig, track_label
 from snnkart.envs.spec import ENV_REVISION
 from snnkart.envs.tracks import load_track
 from snnkart.errors import UsageError
-from snnkart.io import write_json, write_text
+from snnkart.io import write_text
+from snnkart.report.study_record import (
+    STUDY,
+    Curve,
+    RunRecord,
+    StudyRecord,
+    StudySettings,
+    WallClock,
+)
 from snnkart.rl.config import TrainConfig, load_config
 
 if sys.version_info >= (3, 11):
@@ -44,7 +52,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-RECORD_SCHEMA = "snnkart/study/v1"
+RECORD_SCHEMA = STUDY.tag
 KEY_FILE = "study_key.txt"
 PACKAGE = Path(__file__).resolve().parents[1]
 
@@ -161,51 +169,52 @@ def _set_aside_stale(runs_dir: Path, runs: list[Run]) -> int:
     return stale
 
 
-def curve(run_dir: Path) -> dict[str, list[Any]]:
+def curve(run_dir: Path) -> Curve:
     """Per iteration: env steps, cumulative training finishes, mean episodic return."""
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()
             if line.strip()]  # fmt: skip
-    return {
-        "steps": [r["global_step"] for r in rows],
-        "finishes": [r["charts/cumulative_finishes"] for r in rows],
-        "return": [r["charts/episodic_return"] for r in rows],
-        "seconds": [
+    return Curve(
+        steps=[r["global_step"] for r in rows],
+        finishes=[r["charts/cumulative_finishes"] for r in rows],
+        returns=[r["charts/episodic_return"] for r in rows],
+        seconds=[
             (r["global_step"] - p) / r["charts/SPS"]
             for r, p in zip(rows, [0] + [r["global_step"] for r in rows[:-1]], strict=True)
         ],
-    }
+    )
 
 
-def steps_to(finishes: int, c: dict[str, list[Any]]) -> int | None:
+def steps_to(finishes: int, c: Curve) -> int | None:
     """The env step (iteration resolution) at which cumulative finishes first reach
     ``finishes``; None if they never did."""
-    return next((s for s, f in zip(c["steps"], c["finishes"], strict=True) if f >= finishes), None)
+    return next((s for s, f in zip(c.steps, c.finishes, strict=True) if f >= finishes), None)
 
 
 def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
-               evaluation: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+               evaluation: Evaluation) -> RunRecord:  # fmt: skip
     c = curve(runs_dir / run.spec.name)
-    return {
-        "name": run.spec.name, "track": run.track, "env": run.env, "policy": run.policy,
-        "variant": run.variant,
-        "seed": run.seed, "status": result.status, "steps": result.global_step,
-        "stopped_early": result.stopped_early,
-        "first_finish_step": result.first_finish_step,
-        "steps_to_finishes": steps_to(study.finishes, c),
-        "training_finishes": result.finishes, "training_episodes": result.episodes,
-        "train_seconds": sum(c["seconds"]),
-        "eval_backend": eval_backend(run),
-        "eval_success_rate": evaluation["success_rate"],
-        "eval_mean_return": evaluation["mean_return"], "eval_crashes": evaluation["crashes"],
-        "eval_mean_lap_time": evaluation.get("mean_lap_time"),
-        "eval_stood_still": evaluation.get("stood_still"),
-        "eval_spikes_per_step": evaluation.get("spikes_per_step"),
-        "eval_counts_per_step": evaluation.get("counts_per_step"), "curve": c,
-    }  # fmt: skip
+    return RunRecord(
+        name=run.spec.name, track=run.track, env=run.env, policy=run.policy,
+        variant=run.variant,
+        seed=run.seed, status=result.status, steps=result.global_step,
+        stopped_early=result.stopped_early,
+        first_finish_step=result.first_finish_step,
+        steps_to_finishes=steps_to(study.finishes, c),
+        training_finishes=result.finishes, training_episodes=result.episodes,
+        train_seconds=sum(c.seconds),
+        eval_backend=eval_backend(run),
+        eval_success_rate=evaluation.summary.success_rate,
+        eval_mean_return=evaluation.summary.mean_return,
+        eval_crashes=evaluation.summary.crashes,
+        eval_mean_lap_time=evaluation.summary.mean_lap_time,
+        eval_stood_still=evaluation.summary.stood_still,
+        eval_spikes_per_step=evaluation.spikes_per_step,
+        eval_counts_per_step=evaluation.counts_per_step, curve=c,
+    )  # fmt: skip
 
 
 def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | None = None,
-              ray: bool = False, only: list[str] | None = None) -> dict[str, Any]:  # fmt: skip
+              ray: bool = False, only: list[str] | None = None) -> StudyRecord:  # fmt: skip
     """Train, evaluate and summarise the study into ``out`` (``out/runs/<name>`` per run,
     ``out/study.json``); returns the record. ``only``: see :func:`plan` (a piece of a study;
     the record then covers that piece)."""
@@ -231,35 +240,36 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
     evaluations = evaluate(runs, runs_dir, study, jobs or os.cpu_count() or 1, reporter)
     records = [run_record(run, res, runs_dir, study, evaluations[run.spec.name])
                for run, res in zip(runs, results, strict=True)]  # fmt: skip
-    record = {
-        "schema": RECORD_SCHEMA,
-        "study": study.model_dump(mode="json", by_alias=True),
-        "only": only,
-        "env_revision": ENV_REVISION,
-        "code": code_digest()[:20],
-        "machine": machine_info(),  # with the commit
-        "wall_clock": {
-            "train_seconds": train_wall,
-            "eval_seconds": time.perf_counter() - start - train_wall,
-            "runs": len(runs),
-            "runs_reused": sum(r.status == "reused" for r in results),
-            "runs_set_aside": stale,
-        },
-        "env_steps": sum(r["steps"] for r in records),
-        "cells": summarise(records, study),
-        "deployed": [],
-        "runs": records,
-    }
-    write_json(out / "study.json", record)  # the trainings and evaluations, kept whatever
+    record = StudyRecord(
+        schema=RECORD_SCHEMA,
+        study=StudySettings(**study.model_dump(mode="json", by_alias=True)),
+        only=only,
+        env_revision=ENV_REVISION,
+        code=code_digest()[:20],
+        machine=machine_info(),  # with the commit
+        wall_clock=WallClock(
+            train_seconds=train_wall,
+            eval_seconds=time.perf_counter() - start - train_wall,
+            runs=len(runs),
+            runs_reused=sum(r.status == "reused" for r in results),
+            runs_set_aside=stale,
+        ),
+        env_steps=sum(r.steps for r in records),
+        cells=summarise(records, study),
+        deployed=[],
+        runs=records,
+    )
+    record.write(out / "study.json")  # the trainings and evaluations, kept whatever
     write_documents(record, out)  # happens to the deployments on Lava
     if study.deploy_episodes:
-        record["deployed"] = deploy_median_seeds(records, runs_dir, study, reporter)
-        write_json(out / "study.json", record)
+        deployed = deploy_median_seeds(records, runs_dir, study, reporter)
+        record = dataclasses.replace(record, deployed=deployed)
+        record.write(out / "study.json")
         write_documents(record, out)
     return record
 
 
-def write_documents(record: dict[str, Any], out: Path) -> None:
+def write_documents(record: StudyRecord, out: Path) -> None:
     """``study.md`` (the tables beside the original's) and ``plots/`` from a study record."""
     from snnkart.app.study_summary import ORIGINAL
     from snnkart.report.study import markdown, write_plots

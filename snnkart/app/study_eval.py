@@ -4,15 +4,17 @@ in fixed point, checked step by step against the reference of the same arithmeti
 
 from __future__ import annotations
 
-import json
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.reporter import Reporter
-from snnkart.app.study_summary import counts_per_step
 from snnkart.app.worker import EvalJob, WorkerRequest
+from snnkart.contract.deploy_record import DeployRecord, StepCounts
+from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.errors import UsageError
+from snnkart.report.study_record import DeployedRun, RunRecord
 
 if TYPE_CHECKING:
     from snnkart.app.study_types import Run, StudyConfig
@@ -70,7 +72,7 @@ def _run_all(jobs: list[tuple[str, WorkerRequest]], width: int, reporter: Report
 
 
 def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
-             reporter: Reporter) -> dict[str, dict[str, Any]]:  # fmt: skip
+             reporter: Reporter) -> dict[str, Evaluation]:  # fmt: skip
     """Each run's evaluation summary, evaluating (``jobs`` at a time) where none newer than
     its checkpoint exists."""
     todo: list[tuple[str, WorkerRequest]] = []
@@ -82,57 +84,73 @@ def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
     return {run.spec.name: _summary(_eval_job(run, runs_dir, study)[1]) for run in runs}
 
 
-def median_seed(records: list[dict[str, Any]]) -> dict[str, Any]:
+def median_seed(records: list[RunRecord]) -> RunRecord:
     """The run in the middle of a cell's seeds by steps to N finishes (never = last; ties by
     seed); of an even count, the earlier of the middle two."""
-    order = sorted(records, key=lambda r: (r["steps_to_finishes"] is None,
-                                           r["steps_to_finishes"] or 0, r["seed"]))  # fmt: skip
+    order = sorted(records, key=lambda r: (r.steps_to_finishes is None,
+                                           r.steps_to_finishes or 0, r.seed))  # fmt: skip
     return order[(len(order) - 1) // 2]
 
 
-def deploy_median_seeds(records: list[dict[str, Any]], runs_dir: Path, study: StudyConfig,
-                        reporter: Reporter) -> list[dict[str, Any]]:  # fmt: skip
+def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyConfig,
+                        reporter: Reporter) -> list[DeployedRun]:  # fmt: skip
     """Each SNN cell's median-seed run on lava-sim in fixed point for
     ``study.deploy_episodes`` episodes (the evaluation's first seeds), one at a time (Lava
     runs its own processes); what each deployment gave and whether it was bit-exact."""
-    cells: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    cells: dict[tuple[str, str, str], list[RunRecord]] = {}
     for r in records:
-        if r["eval_backend"] == "nir-ref fixed":
-            cells.setdefault((r["track"], r["env"], r["variant"]), []).append(r)
+        if r.eval_backend == "nir-ref fixed":
+            cells.setdefault((r.track, r.env, r.variant), []).append(r)
     chosen = [median_seed(rs) for rs in cells.values()]
     todo: list[tuple[str, WorkerRequest]] = []
     for r in chosen:
-        run_dir = runs_dir / r["name"]
+        run_dir = runs_dir / r.name
         if _stale(run_dir / DEPLOY_DIR / "deploy.json", run_dir / "checkpoint.pt"):
-            todo.append((r["name"], EvalJob(str(run_dir), study.deploy_episodes, study.eval_seed,
-                                            str(run_dir / DEPLOY_DIR), "lava-sim", "fixed")))  # fmt: skip
+            todo.append(
+                (
+                    r.name,
+                    EvalJob(
+                        str(run_dir),
+                        study.deploy_episodes,
+                        study.eval_seed,
+                        str(run_dir / DEPLOY_DIR),
+                        "lava-sim",
+                        "fixed",
+                    ),
+                )
+            )
     # a deployment that left the reference still wrote its record: it shows as not bit-exact
     _run_all(todo, 1, reporter, "deployments on lava-sim", ok=(0, PARITY_FAILED))
     out = []
     for r in chosen:
-        result = json.loads((runs_dir / r["name"] / DEPLOY_DIR / "deploy.json").read_text())
-        parity = result["parity"]
-        out.append({
-            "track": r["track"], "env": r["env"], "variant": r["variant"], "run": r["name"],
-            "seed": r["seed"],
-            "backend": "lava-sim fixed", "episodes": result["summary"]["episodes"],
-            "success_rate": result["summary"]["success_rate"],
-            "bit_exact": parity["same_arithmetic_mismatched_windows"] == 0
-            and parity["same_arithmetic_mismatched_actions"] == 0,
-            "env_steps": parity["env_steps"],
-            "reference_success_rate": r["eval_success_rate"],
-            "reference_episodes": study.eval_episodes,
-        })  # fmt: skip
+        result = DeployRecord.read(runs_dir / r.name / DEPLOY_DIR / "deploy.json")
+        out.append(DeployedRun(
+            track=r.track, env=r.env, variant=r.variant, run=r.name, seed=r.seed,
+            backend="lava-sim fixed", episodes=result.summary.episodes,
+            success_rate=result.summary.success_rate, bit_exact=result.bit_exact,
+            env_steps=result.parity.env_steps, reference_success_rate=r.eval_success_rate,
+            reference_episodes=study.eval_episodes,
+        ))  # fmt: skip
     return out
 
 
-def _summary(path: Path) -> dict[str, Any]:
-    """An evaluation's summary; for an SNN also its spikes per env step (one inference: T
-    steps of every spiking layer, from the reference's counts)."""
-    data = json.loads(path.read_text())
-    summary = dict(data["summary"])
-    counts = data.get("counts")
-    if counts and counts.get("env_steps"):
-        summary["spikes_per_step"] = sum(counts["spikes"]) / counts["env_steps"]
-        summary["counts_per_step"] = counts_per_step(data)
-    return summary
+@dataclass(frozen=True)
+class Evaluation:
+    """A run's evaluation: its summary, and for an SNN on the reference its spikes per env step
+    (one inference: T steps of every spiking layer, from the reference's counts)."""
+
+    summary: EvalSummary
+    spikes_per_step: float | None = None
+    counts_per_step: StepCounts | None = None
+
+
+def _summary(path: Path) -> Evaluation:
+    """The evaluation in ``path``: a ``deploy.json`` (an SNN on the reference) or an
+    ``eval.json`` (torch)."""
+    if path.name != "deploy.json":
+        return Evaluation(EvalRecord.read(path).summary)
+    record = DeployRecord.read(path)
+    steps = record.counts.env_steps
+    if not steps:
+        return Evaluation(record.summary)
+    return Evaluation(record.summary, sum(record.counts.spikes) / steps, StepCounts.of(record))

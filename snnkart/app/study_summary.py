@@ -6,9 +6,12 @@ that did: medians are taken with it as infinity and shown as ">cap" when they la
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import statistics
 from typing import Any
+
+from snnkart.report.study_record import CellSummary, RunRecord, Spread
 
 ORIGINAL = {
     # kart-simulator's headline table (one run per cell, as quoted in issue 17):
@@ -22,84 +25,55 @@ ORIGINAL = {
 }  # fmt: skip
 
 
-def spread(values: list[float | None]) -> dict[str, Any]:
+def spread(values: list[float | None]) -> Spread:
     """Median, min and max over seeds; None (never reached) counts as infinity."""
     finite = [v for v in values if v is not None]
     as_inf = [math.inf if v is None else float(v) for v in values]
     median = statistics.median(as_inf) if as_inf else math.inf
-    return {
-        "median": None if math.isinf(median) else median,
-        "min": min(finite) if finite else None,
-        "max": None if len(finite) < len(values) else (max(finite) if finite else None),
-        "reached": len(finite),
-        "of": len(values),
-    }
+    return Spread(
+        median=None if math.isinf(median) else median,
+        min=min(finite) if finite else None,
+        max=None if len(finite) < len(values) else (max(finite) if finite else None),
+        reached=len(finite),
+        of=len(values),
+    )
 
 
-def summarise(records: list[dict[str, Any]], study: Any) -> list[dict[str, Any]]:
+def summarise(records: list[RunRecord], study: Any) -> list[CellSummary]:
     """One entry per cell (track, env, policy, variant), with the SNN against the ANN of the
     same track, env and variant."""
-    cells: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
+    cells: dict[tuple[str, str, str, str], list[RunRecord]] = {}
     for r in records:
-        cells.setdefault((r["track"], r["env"], r["policy"], r.get("variant", "")), []).append(r)
+        cells.setdefault(r.cell, []).append(r)
     out = []
     for (track, env, policy, variant), rs in cells.items():
-        spikes = [r.get("eval_spikes_per_step") for r in rs]
-        synops = [chip_synops(r.get("eval_counts_per_step")) for r in rs]
-        out.append({
-            "track": track, "env": env, "policy": policy, "variant": variant,
-            "seeds": [r["seed"] for r in rs],
-            "first_finish_step": spread([r["first_finish_step"] for r in rs]),
-            "steps_to_finishes": spread([r["steps_to_finishes"] for r in rs]),
-            "eval_success_rate": spread([r["eval_success_rate"] for r in rs]),
-            "eval_spikes_per_step": spread(spikes) if None not in spikes else None,
-            "eval_synops_per_step": spread(synops) if None not in synops else None,
-            "train_seconds": spread([r["train_seconds"] for r in rs]),
-            "env_steps": sum(r["steps"] for r in rs),
-        })  # fmt: skip
-    for entry in out:
-        if entry["policy"] == "snn":
-            same = ("track", "env", "variant")
-            ann = next((e for e in out if e["policy"] == "ann"
-                        and all(e[k] == entry[k] for k in same)), None)  # fmt: skip
-            entry["snn_pct_of_ann"] = pct_of_ann(ann, entry)
+        spikes = [r.eval_spikes_per_step for r in rs]
+        synops = [None if r.eval_counts_per_step is None else r.eval_counts_per_step.chip_synops
+                  for r in rs]  # fmt: skip
+        out.append(CellSummary(
+            track=track, env=env, policy=policy, variant=variant,
+            seeds=[r.seed for r in rs],
+            first_finish_step=spread([r.first_finish_step for r in rs]),
+            steps_to_finishes=spread([r.steps_to_finishes for r in rs]),
+            eval_success_rate=spread([r.eval_success_rate for r in rs]),
+            eval_spikes_per_step=spread(spikes) if None not in spikes else None,
+            eval_synops_per_step=spread(synops) if None not in synops else None,
+            train_seconds=spread([r.train_seconds for r in rs]),
+            env_steps=sum(r.steps for r in rs),
+        ))  # fmt: skip
+    for i, entry in enumerate(out):
+        if entry.policy == "snn":
+            ann = next((e for e in out if e.policy == "ann"
+                        and (e.track, e.env, e.variant) == (entry.track, entry.env, entry.variant)),
+                       None)  # fmt: skip
+            out[i] = dataclasses.replace(entry, snn_pct_of_ann=pct_of_ann(ann, entry))
     return out
 
 
-def pct_of_ann(ann: dict[str, Any] | None, snn: dict[str, Any]) -> float | None:
+def pct_of_ann(ann: CellSummary | None, snn: CellSummary) -> float | None:
     """ANN median steps to N finishes / SNN median steps to N finishes, in %; None when either
     median did not get there."""
     if ann is None:
         return None
-    a, s = ann["steps_to_finishes"]["median"], snn["steps_to_finishes"]["median"]
+    a, s = ann.steps_to_finishes.median, snn.steps_to_finishes.median
     return None if a is None or s is None else 100.0 * a / s
-
-
-def chip_synops(counts: dict[str, Any] | None) -> float | None:
-    """Synaptic operations per inference on the chip: between spiking layers, not the last
-    layer's fan-out to the host's readout; None without counts."""
-    return None if counts is None else sum(counts["synops_per_step"][:-1])
-
-
-def counts_per_step(deploy: dict[str, Any]) -> dict[str, Any]:
-    """A reference evaluation's counts per env step (one inference) and the network they were
-    counted on, from its ``deploy.json``: what ``snnkart report --sweep`` prices."""
-    manifest, counts = deploy["manifest"], deploy["counts"]
-    n = max(int(counts["env_steps"]), 1)
-    over = counts["pipeline_overhead"]
-    return {
-        "num_steps": manifest["num_steps"],
-        "sizes": [layer["size"] for layer in manifest["layers"]],
-        "network": deploy["network"],
-        "precision": deploy["precision"],
-        "encoding": manifest["encoding"],
-        "population": manifest.get("population"),
-        "action_mode": manifest["action_mode"],
-        "env_steps": counts["env_steps"],
-        "spikes_per_step": [s / n for s in counts["spikes"]],
-        "synops_per_step": [s / n for s in counts["synops"]],
-        "neuron_updates_per_step": [s / n for s in counts["neuron_updates"]],
-        "overhead_spikes_per_step": [s / n for s in over["spikes"]],
-        "overhead_synops_per_step": [s / n for s in over["synops"]],
-        "overhead_neuron_updates_per_step": [s / n for s in over["neuron_updates"]],
-    }

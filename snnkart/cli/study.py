@@ -29,12 +29,13 @@ def study(
     --only; the same command without it gathers every piece, reusing their runs."""
     from snnkart.app.study import load_study, run_study
     from snnkart.cli.console import ConsoleReporter
+    from snnkart.report.study_record import StudyRecord
 
-    def run() -> dict:
+    def run() -> StudyRecord:
         return run_study(load_study(config), out, ConsoleReporter(), jobs, ray, only)
 
     record = guard(run, "every run saved its checkpoint; run the same command to resume")
     typer.echo((out / "study.md").read_text())
-    w = record["wall_clock"]
-    typer.echo(f"{w['runs']} runs ({w['runs_reused']} reused) in "
-               f"{(w['train_seconds'] + w['eval_seconds']) / 60:.1f} min; results in {out}")  # fmt: skip
+    w = record.wall_clock
+    typer.echo(f"{w.runs} runs ({w.runs_reused} reused) in "
+               f"{(w.train_seconds + w.eval_seconds) / 60:.1f} min; results in {out}")  # fmt: skip

@@ -17,8 +17,8 @@ them with the readout's fan-out, which is host work, so they are not chip synapt
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
+from snnkart.contract.deploy_record import Counts, DeployRecord, StepCounts
 from snnkart.errors import ReportError
 
 
@@ -38,23 +38,19 @@ class Network:
     action_mode: str = "discrete"
 
     @classmethod
-    def of_deploy(cls, record: dict[str, Any]) -> Network:
-        net, manifest = record.get("network"), record.get("manifest", {})
-        if not net:
-            raise ReportError(
-                "the deploy.json has no network description (written by an older snnkart); "
-                "run snnkart deploy again"
-            )
+    def of_deploy(cls, record: DeployRecord) -> Network:
+        """The network a deployment ran: its shape, T, encoding and action decoding."""
+        net, manifest = record.network, record.manifest
         return cls(
-            n_in=int(net["n_in"]),
-            sizes=tuple(int(s) for s in net["sizes"]),
-            n_out=int(net["n_out"]),
-            num_steps=int(manifest["num_steps"]),
-            encoding=str(manifest.get("encoding", "current")),
-            population=int(manifest.get("population") or 0),
-            readout=bool(net.get("readout", True)),
-            input_scale=bool(net.get("input_scale", False)),
-            action_mode=str(manifest.get("action_mode", "discrete")),
+            n_in=net.n_in,
+            sizes=tuple(net.sizes),
+            n_out=net.n_out,
+            num_steps=manifest.num_steps,
+            encoding=manifest.encoding,
+            population=manifest.population or 0,
+            readout=net.readout,
+            input_scale=net.input_scale,
+            action_mode=manifest.action_mode,
         )
 
     def __post_init__(self) -> None:
@@ -166,13 +162,20 @@ class SnnCounts:
     host: tuple[HostOp, ...] = field(default=())
 
     @classmethod
-    def of_deploy(cls, record: dict[str, Any]) -> SnnCounts:
-        net = Network.of_deploy(record)
-        c = record["counts"]
-        n = int(c["env_steps"])
+    def of_deploy(cls, record: DeployRecord) -> SnnCounts:
+        """A deployment's counts, per env step (its episodes, or one if it lists none)."""
+        return cls.measured(
+            Network.of_deploy(record), record.counts, len(record.episodes) or 1,
+            fixed_point=record.precision == "fixed",
+        )  # fmt: skip
+
+    @classmethod
+    def measured(cls, net: Network, c: Counts, episodes: int, fixed_point: bool) -> SnnCounts:
+        """Counts measured over ``c.env_steps`` env steps of ``episodes`` episodes, per step."""
+        n = c.env_steps
         if n < 1:
             raise ReportError("the deployment ran no env step; deploy at least one episode")
-        over = c.get("pipeline_overhead", {})
+        over = c.pipeline_overhead
         L = len(net.sizes)
 
         def per_step(values: list[int] | None, chip_only: bool = False) -> tuple[float, ...]:
@@ -184,49 +187,41 @@ class SnnCounts:
         return cls(
             net=net,
             env_steps=n,
-            episodes=len(record.get("episodes", [])) or 1,
-            spikes=per_step(c["spikes"]),
-            synops=per_step(c["synops"], chip_only=True),
-            neuron_updates=per_step(c["neuron_updates"]),
-            overhead_spikes=per_step(over.get("spikes")),
-            overhead_synops=per_step(over.get("synops"), chip_only=True),
-            overhead_neuron_updates=per_step(over.get("neuron_updates")),
-            host=tuple(host_ops(net, fixed_point=record.get("precision") == "fixed")),
+            episodes=episodes,
+            spikes=per_step(c.spikes),
+            synops=per_step(c.synops, chip_only=True),
+            neuron_updates=per_step(c.neuron_updates),
+            overhead_spikes=per_step(over.spikes if over else None),
+            overhead_synops=per_step(over.synops if over else None, chip_only=True),
+            overhead_neuron_updates=per_step(over.neuron_updates if over else None),
+            host=tuple(host_ops(net, fixed_point=fixed_point)),
         )
 
     @classmethod
-    def of_sweep(cls, run: dict[str, Any]) -> SnnCounts:
+    def of_sweep(cls, run: StepCounts) -> SnnCounts:
         """A study run's counts per env step (``eval_counts_per_step`` in ``study.json``)."""
-        net_info = run["network"]
-        net = cls._sweep_network(run, net_info)
-        L = len(net.sizes)
-        zeros = [0.0] * L
+        shape = run.network
+        net = Network(
+            n_in=shape.n_in, sizes=tuple(run.sizes), n_out=shape.n_out,
+            num_steps=run.num_steps, encoding=run.encoding, population=run.population or 0,
+            readout=shape.readout, input_scale=shape.input_scale, action_mode=run.action_mode,
+        )  # fmt: skip
 
         def chip(values: list[float]) -> tuple[float, ...]:
             return (*values[:-1], 0.0)  # the last layer's fan-out is the host's readout
 
         return cls(
             net=net,
-            env_steps=int(run["env_steps"]),
+            env_steps=run.env_steps,
             episodes=1,
-            spikes=tuple(run["spikes_per_step"]),
-            synops=chip(run["synops_per_step"]),
-            neuron_updates=tuple(run["neuron_updates_per_step"]),
-            overhead_spikes=tuple(run.get("overhead_spikes_per_step", zeros)),
-            overhead_synops=chip(run.get("overhead_synops_per_step", zeros)),
-            overhead_neuron_updates=tuple(run.get("overhead_neuron_updates_per_step", zeros)),
-            host=tuple(host_ops(net, fixed_point=run.get("precision") == "fixed")),
+            spikes=tuple(run.spikes_per_step),
+            synops=chip(run.synops_per_step),
+            neuron_updates=tuple(run.neuron_updates_per_step),
+            overhead_spikes=tuple(run.overhead_spikes_per_step),
+            overhead_synops=chip(run.overhead_synops_per_step),
+            overhead_neuron_updates=tuple(run.overhead_neuron_updates_per_step),
+            host=tuple(host_ops(net, fixed_point=run.precision == "fixed")),
         )
-
-    @staticmethod
-    def _sweep_network(run: dict[str, Any], net: dict[str, Any]) -> Network:
-        return Network(
-            n_in=int(net["n_in"]), sizes=tuple(run["sizes"]), n_out=int(net["n_out"]),
-            num_steps=int(run["num_steps"]), encoding=str(run.get("encoding", "current")),
-            population=int(run.get("population") or 0),
-            readout=bool(net.get("readout", True)), input_scale=bool(net.get("input_scale", False)),
-            action_mode=str(run.get("action_mode", "discrete")),
-        )  # fmt: skip
 
     def scaled(self, density: float) -> SnnCounts:
         """The same policy with ``density`` times its spikes (and so its synaptic ops)."""

@@ -22,12 +22,27 @@ import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from snnkart import faults
 from snnkart.backends.base import SpikeCounts
 from snnkart.backends.loading import load_policy
 from snnkart.backends.registry import BACKENDS
+from snnkart.contract.deploy_record import (
+    COUNTS_NOTE,
+    DEPLOY_SCHEMA,
+    Counts,
+    DeployedEpisode,
+    DeployRecord,
+    EnvRecord,
+    Machine,
+    ManifestSummary,
+    NetworkShape,
+    OverheadCounts,
+    ParityRecord,
+    QuantLayer,
+    Timing,
+)
 from snnkart.contract.manifest import Manifest, ManifestError
 from snnkart.envs.tracks import track_label
 from snnkart.errors import DeployError, DeployWriteError, ParityError
@@ -35,9 +50,6 @@ from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
 from snnkart.eval.parity import CheckedPredictor, check_parity, open_backends
 from snnkart.eval.policy_env import TrackChoice, make_policy_env, resolve_track
 from snnkart.eval.request import DeployRequest
-from snnkart.io import write_json
-
-DEPLOY_SCHEMA = "snnkart/deploy/v1"
 
 
 def check_writable(out_dir: Path) -> None:
@@ -52,9 +64,7 @@ def check_writable(out_dir: Path) -> None:
         ) from exc
 
 
-def run_deploy(
-    request: DeployRequest, on_episode: Any = None, on_step: Any = None
-) -> dict[str, Any]:
+def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = None) -> DeployRecord:
     """Run the request's seeded episodes; return (and write to ``out/deploy.json``) the record.
 
     Ctrl-C and SIGTERM (:mod:`snnkart.faults`) are taken between env steps: the backend is
@@ -75,29 +85,40 @@ def run_deploy(
         stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
         run = _Run(CheckedPredictor(primary, exact, float32), time.perf_counter() - t0)
         run.play(gym_env, request.episodes, seed, on_step, on_episode)
-    record = {
-        "schema": DEPLOY_SCHEMA,
-        "backend": backend,
-        "precision": precision if backend == "lava-sim" else primary.arithmetic,
-        "nir_file": str(nir_path),
-        "manifest": _manifest_summary(manifest),
-        "network": _network(chain),
-        "env": {
-            "env": gym_env.unwrapped.env_name,
+    record = DeployRecord(
+        schema=DEPLOY_SCHEMA,
+        backend=backend,
+        precision=precision if backend == "lava-sim" else primary.arithmetic,
+        nir_file=str(nir_path),
+        manifest=_manifest_summary(manifest),
+        network=_network(chain),
+        env=EnvRecord(
+            env=gym_env.unwrapped.env_name,
             **choice.record(),
-            "track_label": choice.label,
-            "action_mode": gym_env.unwrapped.action_mode,
-        },
-        "first_seed": seed,
-        **run.results(),
-        "machine": {"python": platform.python_version(), "machine": platform.machine()},
-        "versions": manifest.versions,
-        "episodes": run.per_episode,
-    }
+            track_label=choice.label,
+            action_mode=gym_env.unwrapped.action_mode,
+        ),
+        first_seed=seed,
+        **run.results()._asdict(),
+        machine=Machine(python=platform.python_version(), machine=platform.machine()),
+        versions=manifest.versions,
+        episodes=run.per_episode,
+    )
     if out_dir is not None:
         _write(out_dir / "deploy.json", record)
     check_parity(record)
     return record
+
+
+class _Results(NamedTuple):
+    """What the episodes measured: the deploy record's fields of that name."""
+
+    summary: EvalSummary
+    counts: Counts
+    counts_note: str
+    parity: ParityRecord
+    timing: Timing
+    quantization: list[QuantLayer] | None
 
 
 class _Run:
@@ -105,20 +126,19 @@ class _Run:
 
     def __init__(self, checked: CheckedPredictor, startup: float) -> None:
         self.checked, self.startup = checked, startup
-        self.per_episode: list[dict[str, Any]] = []
+        self.per_episode: list[DeployedEpisode] = []
         self.summary: EvalSummary | None = None
         self.wall = 0.0
 
     def play(self, env: Any, episodes: int, seed: int, on_step: Any, on_episode: Any) -> None:
         primary = self.checked.primary
-        before = primary.counts.as_dict()
+        before = _counts(primary.counts)
 
         def episode_done(result: EpisodeResult) -> None:
             nonlocal before
-            self.per_episode.append(
-                {**asdict(result), "counts": _counts_delta(primary.counts, before)}
-            )
-            before = primary.counts.as_dict()
+            now = _counts(primary.counts)
+            self.per_episode.append(DeployedEpisode(**asdict(result), counts=now.minus(before)))
+            before = now
             if on_episode is not None:
                 on_episode(result)
 
@@ -129,54 +149,53 @@ class _Run:
         self.wall = time.perf_counter() - wall
         self.summary = EvalSummary.of(results)
 
-    def results(self) -> dict[str, Any]:
+    def results(self) -> _Results:
         """The record's summary, counts, parity, timing and quantisation."""
         primary, steps = self.checked.primary, self.checked.parity.env_steps
         assert self.summary is not None
-        return {
-            "summary": asdict(self.summary),
-            "counts": primary.counts.as_dict(),
-            "counts_note": (
-                "spikes, synops (spikes x fan-out) and neuron_updates of the policy's T logical "
-                "SNN steps per env step; pipeline_overhead: the Lava pipeline's fill and drain "
-                "steps (L Dense delays per window), not part of the policy's computation"
+        quantization = None
+        if primary.fixed is not None:
+            quantization = [QuantLayer(**layer) for layer in primary.fixed.describe()]
+        return _Results(
+            summary=self.summary,
+            counts=_counts(primary.counts),
+            counts_note=COUNTS_NOTE,
+            parity=ParityRecord(**self.checked.parity.as_dict()),
+            timing=Timing(
+                startup_s=self.startup,
+                wall_s=self.wall,
+                ms_per_env_step=1000 * self.checked.step_seconds / max(steps, 1),
             ),
-            "parity": self.checked.parity.as_dict(),
-            "timing": {
-                "startup_s": self.startup,
-                "wall_s": self.wall,
-                "ms_per_env_step": 1000 * self.checked.step_seconds / max(steps, 1),
-            },
-            "quantization": None if primary.fixed is None else primary.fixed.describe(),
-        }
+            quantization=quantization,
+        )
 
 
-def _network(chain: Any) -> dict[str, Any]:
+def _network(chain: Any) -> NetworkShape:
     """The chain's shape, for the energy report's counts."""
-    return {
-        "n_in": chain.n_in,
-        "sizes": list(chain.sizes),
-        "n_out": chain.n_out,
-        "readout": chain.readout_weight is not None,
-        "input_scale": chain.input_scale is not None,
-    }
+    return NetworkShape(
+        n_in=chain.n_in,
+        sizes=tuple(chain.sizes),
+        n_out=chain.n_out,
+        readout=chain.readout_weight is not None,
+        input_scale=chain.input_scale is not None,
+    )
 
 
-def _manifest_summary(manifest: Manifest) -> dict[str, Any]:
-    return {
-        "num_steps": manifest.num_steps,
-        "encoding": manifest.encoding,
-        "population": manifest.population,
-        "layers": [asdict(layer) for layer in manifest.layers],
-        "action_mode": manifest.action_mode,
-        "training": manifest.training,
-    }
+def _manifest_summary(manifest: Manifest) -> ManifestSummary:
+    return ManifestSummary(
+        num_steps=manifest.num_steps,
+        encoding=manifest.encoding,
+        population=manifest.population,
+        layers=manifest.layers,
+        action_mode=manifest.action_mode,
+        training=manifest.training,
+    )
 
 
-def _write(path: Path, record: dict[str, Any]) -> None:
+def _write(path: Path, record: DeployRecord) -> None:
     try:
         faults.fault_point("deploy-write")
-        write_json(path, record)
+        record.write(path)
     except OSError as exc:
         raise DeployWriteError(
             f"the run finished but {path} could not be written: {exc.strerror or exc}; "
@@ -185,73 +204,67 @@ def _write(path: Path, record: dict[str, Any]) -> None:
         ) from exc
 
 
-def _counts_delta(now: SpikeCounts, before: dict[str, Any]) -> dict[str, Any]:
-    cur = now.as_dict()
-    out: dict[str, Any] = {"env_steps": cur["env_steps"] - before["env_steps"]}
-    for key in ("spikes", "synops", "neuron_updates"):
-        out[key] = [x - y for x, y in zip(cur[key], before[key], strict=True)]
-    out["pipeline_overhead"] = {
-        key: [
-            x - y
-            for x, y in zip(
-                cur["pipeline_overhead"][key], before["pipeline_overhead"][key], strict=True
-            )
-        ]
-        for key in cur["pipeline_overhead"]
-    }
-    return out
+def _counts(counts: SpikeCounts) -> Counts:
+    """A backend's running counts as the record's."""
+    c = counts.as_dict()
+    return Counts(
+        env_steps=c["env_steps"], spikes=c["spikes"], synops=c["synops"],
+        neuron_updates=c["neuron_updates"],
+        pipeline_overhead=OverheadCounts(**c["pipeline_overhead"]),
+    )  # fmt: skip
 
 
-def summary_lines(record: dict[str, Any]) -> list[str]:
+def summary_lines(record: DeployRecord) -> list[str]:
     """What ``snnkart deploy`` prints."""
-    s, p, c, t = record["summary"], record["parity"], record["counts"], record["timing"]
-    n = max(c["env_steps"], 1)
-    e = record["env"]
+    s, p, c, t, e = record.summary, record.parity, record.counts, record.timing, record.env
+    n = max(c.env_steps, 1)
     lines = [
-        f"{record['backend']} ({record['precision']}) on {e['env']}/"
-        f"{e.get('track_label', e['track'])}, {s['episodes']} episodes: success "
-        f"{s['success_rate']:.0%}, return {s['mean_return']:.2f}, crashes {s['crashes']}, "
-        f"time-outs {s['timeouts']}",
+        f"{record.backend} ({record.precision}) on {e.env}/{e.track_label or e.track}, "
+        f"{s.episodes} episodes: success {s.success_rate:.0%}, return {s.mean_return:.2f}, "
+        f"crashes {s.crashes}, time-outs {s.timeouts}",
     ]
-    if e.get("track_override"):
-        trained = e["trained_track"]
+    if e.track_override and e.trained_track is not None:
+        trained = e.trained_track
         lines.append(
-            f"note: track {e['track_label']} is not the track the policy was trained on "
+            f"note: track {e.track_label} is not the track the policy was trained on "
             f"({track_label(trained['name'], trained.get('given'))})"
         )
-    if p["same_arithmetic_reference"] is not None:
+    if p.same_arithmetic_reference is not None:
         lines.append(
-            f"parity vs numpy reference ({p['same_arithmetic_reference']}, same arithmetic): "
-            f"{p['same_arithmetic_mismatched_windows']} of {p['env_steps']} env steps differ "
-            f"(spike rasters), {p['same_arithmetic_mismatched_actions']} actions differ"
+            f"parity vs numpy reference ({p.same_arithmetic_reference}, same arithmetic): "
+            f"{p.same_arithmetic_mismatched_windows} of {p.env_steps} env steps differ "
+            f"(spike rasters), {p.same_arithmetic_mismatched_actions} actions differ"
         )
-    if p["env_steps"] and "float32_identical_action_fraction" in p:
+    if p.env_steps and p.float32_identical_action_fraction is not None:
         lines.append(
             f"agreement with the float32 policy (torch order): "
-            f"{p['float32_identical_action_fraction']:.2%} identical actions, "
-            f"{p['float32_spike_flips_per_million_neuron_steps']:.0f} spike flips per million "
+            f"{p.float32_identical_action_fraction:.2%} identical actions, "
+            f"{p.float32_spike_flips_per_million_neuron_steps or 0:.0f} spike flips per million "
             "neuron-steps"
         )
     lines.append(
         "per env step (policy): spikes "
-        + ", ".join(f"L{i}: {x / n:.1f}" for i, x in enumerate(c["spikes"]))
+        + ", ".join(f"L{i}: {x / n:.1f}" for i, x in enumerate(c.spikes))
         + "; synops "
-        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(c["synops"]))
+        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(c.synops))
     )
-    o = c["pipeline_overhead"]
+    o = c.pipeline_overhead or OverheadCounts([0] * len(c.spikes), [0] * len(c.spikes),
+                                              [0] * len(c.spikes))  # fmt: skip
     lines.append(
         "pipeline overhead per env step (fill/drain, not the policy): spikes "
-        + ", ".join(f"L{i}: {x / n:.2f}" for i, x in enumerate(o["spikes"]))
+        + ", ".join(f"L{i}: {x / n:.2f}" for i, x in enumerate(o.spikes))
         + "; neuron updates "
-        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(o["neuron_updates"]))
+        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(o.neuron_updates))
     )
-    lines.append(f"{t['ms_per_env_step']:.1f} ms per env step, start-up {t['startup_s']:.1f} s")
+    lines.append(f"{t.ms_per_env_step:.1f} ms per env step, start-up {t.startup_s:.1f} s")
     return lines
 
 
 __all__ = [
     "BACKENDS",
+    "DEPLOY_SCHEMA",
     "DeployError",
+    "DeployRecord",
     "DeployRequest",
     "DeployWriteError",
     "ManifestError",

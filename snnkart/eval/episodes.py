@@ -7,18 +7,13 @@ scored by the same :func:`run_episodes`.
 
 from __future__ import annotations
 
-import statistics
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 
 from snnkart import faults
-from snnkart.io import write_json
-
-EVAL_SCHEMA = "snnkart/eval/v1"
+from snnkart.contract.eval_record import EVAL_SCHEMA, EpisodeResult, EvalSummary
 
 
 class Predictor(Protocol):
@@ -27,48 +22,6 @@ class Predictor(Protocol):
 
     def predict(self, obs: np.ndarray) -> Any:
         """The action for one observation."""
-
-
-@dataclass
-class EpisodeResult:
-    seed: int
-    episode_return: float
-    length: int
-    finished: bool
-    lap_time: float | None
-    crashed: bool
-    stood_still: bool
-    timed_out: bool
-    checkpoints_passed: int
-
-
-@dataclass
-class EvalSummary:
-    episodes: int
-    success_rate: float
-    mean_return: float
-    std_return: float
-    mean_lap_time: float | None
-    best_lap_time: float | None
-    crashes: int
-    stood_still: int
-    timeouts: int
-
-    @classmethod
-    def of(cls, results: list[EpisodeResult]) -> EvalSummary:
-        returns = [r.episode_return for r in results]
-        laps = [r.lap_time for r in results if r.lap_time is not None]
-        return cls(
-            episodes=len(results),
-            success_rate=sum(r.finished for r in results) / max(len(results), 1),
-            mean_return=float(np.mean(returns)) if returns else float("nan"),
-            std_return=float(np.std(returns)) if returns else float("nan"),
-            mean_lap_time=statistics.fmean(laps) if laps else None,
-            best_lap_time=min(laps) if laps else None,
-            crashes=sum(r.crashed for r in results),
-            stood_still=sum(r.stood_still for r in results),
-            timeouts=sum(r.timed_out for r in results),
-        )
 
 
 def run_episodes(
@@ -111,15 +64,4 @@ def run_episodes(
     return results
 
 
-def write_eval(
-    path: Path, summary: EvalSummary, results: list[EpisodeResult], extra: dict[str, Any]
-) -> dict[str, Any]:
-    """Write the eval record to ``path`` (atomically) and return it."""
-    record = {
-        "schema": EVAL_SCHEMA,
-        **extra,
-        "summary": asdict(summary),
-        "episodes": [asdict(r) for r in results],
-    }
-    write_json(path, record)
-    return record
+__all__ = ["EVAL_SCHEMA", "EpisodeResult", "EvalSummary", "Predictor", "run_episodes"]

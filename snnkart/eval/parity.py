@@ -16,6 +16,7 @@ from snnkart.backends.base import Arithmetic, WindowResult
 from snnkart.backends.loading import LoadedPolicy
 from snnkart.backends.reference import NIRReference
 from snnkart.backends.registry import make_backend
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.errors import ParityError
 
 
@@ -140,18 +141,18 @@ def open_backends(
     return primary, exact, float32
 
 
-def check_parity(record: dict[str, Any]) -> None:
+def check_parity(record: DeployRecord) -> None:
     """Raise :class:`ParityError` if any env step differed from the same-arithmetic reference:
     "every env step checked" is a guard, not only a measurement."""
-    p = record["parity"]
-    bad = p.get("same_arithmetic_mismatched_windows", 0)
+    p = record.parity
+    bad = p.same_arithmetic_mismatched_windows
     if not bad:
         return
-    first = p.get("first_same_arithmetic_mismatch") or {}
+    first = p.first_same_arithmetic_mismatch or {}
     layer = first.get("layer", -1)
     raise ParityError(
-        f"parity failure: {record['backend']} ({record['precision']}) differs from the numpy "
-        f"reference ({p['same_arithmetic_reference']}) in {bad} of {p['env_steps']} env steps; "
+        f"parity failure: {record.backend} ({record.precision}) differs from the numpy "
+        f"reference ({p.same_arithmetic_reference}) in {bad} of {p.env_steps} env steps; "
         f"the first is env step {first.get('env_step')} (episode {first.get('episode')}, step "
         f"{first.get('episode_step')}), "
         + (f"layer {layer}, window row {first.get('row')}" if layer >= 0 else "window shape")

@@ -23,6 +23,7 @@ from typer.testing import CliRunner
 from snnkart.backends.reference import NIRReference
 from snnkart.cli import app
 from snnkart.contract.manifest import manifest_path
+from snnkart.contract.records import to_data
 from snnkart.eval.deploy import DEPLOY_SCHEMA, DeployRequest, run_deploy
 from snnkart.rl.trained import TorchPredictor, load_run
 
@@ -140,7 +141,7 @@ def test_cli_deploy_lava_fixed_writes_the_record(exported: Path, tmp_path: Path)
     assert record["timing"]["startup_s"] > 0 and record["timing"]["ms_per_env_step"] > 0
     assert f"0 of {counts['env_steps']} env steps differ" in " ".join(result.output.split())
     # the same arithmetic in numpy drives the same episode with the same counts
-    ref = run_deploy(DeployRequest(exported, "nir-ref", "fixed", episodes=1))
+    ref = to_data(run_deploy(DeployRequest(exported, "nir-ref", "fixed", episodes=1)))
     assert ref["counts"] == counts
     assert ref["episodes"][0]["length"] == episode["length"]
     assert ref["summary"] == record["summary"]
@@ -164,7 +165,7 @@ def test_cli_eval_run_dir_on_the_reference(
     assert record["counts"]["env_steps"] == sum(e["length"] for e in record["episodes"])
     assert record["counts"]["pipeline_overhead"]["neuron_updates"] == [0, 0]
     # the run directory was exported on the fly: the same policy as the exported file
-    direct = run_deploy(DeployRequest(exported, "nir-ref", "float32", episodes=2))
+    direct = to_data(run_deploy(DeployRequest(exported, "nir-ref", "float32", episodes=2)))
     assert direct["episodes"] == record["episodes"]
     assert direct["counts"] == record["counts"]
     assert not any(runs["steer"].glob("eval-*"))  # --out was honoured
