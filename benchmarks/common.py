@@ -35,7 +35,7 @@ def training_seconds(run_dir: Path) -> tuple[float, int] | None:
     """Seconds spent training and the iterations, from the run's per-iteration metrics (each
     iteration's steps / its steps per second, as ``snnkart study`` counts them); None without
     ``metrics.jsonl``."""
-    from snnkart.app.study import curve
+    from snnkart.app.study_run import curve
 
     if not (run_dir / "metrics.jsonl").is_file():
         return None

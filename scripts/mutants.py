@@ -13,7 +13,7 @@ when that run fails. The script exits non-zero if any mutant survives.
 - ``deploy-mismatch``: Lava returns one flipped spike in every window from the 6th on
   (``LavaSimPredictor.step``); guarded by the parity tests in ``tests/deploy/``.
 - ``parity-guard-off``: ``snnkart deploy`` no longer fails on a parity mismatch
-  (``snnkart.eval.deploy.check_parity`` does nothing); guarded by
+  (``snnkart.eval.closed_loop.check_parity`` does nothing); guarded by
   ``tests/deploy/test_deploy_parity.py``.
 - ``sb3-constant-lr``: ``bench_train`` gives Stable-Baselines3 a constant learning rate while
   snnkart anneals it (as it did before issue 13); guarded by ``tests/test_benchmarks.py``.
@@ -69,9 +69,9 @@ def apply(name: str) -> None:
 
         LavaSimPredictor.step = step  # type: ignore[method-assign]
     elif name == "parity-guard-off":
-        import snnkart.eval.deploy
+        import snnkart.eval.closed_loop
 
-        snnkart.eval.deploy.check_parity = lambda record: None
+        snnkart.eval.closed_loop.check_parity = lambda record: None
     elif name == "sb3-constant-lr":
         from stable_baselines3 import PPO
 

@@ -59,7 +59,7 @@ def test_an_old_export_deploys_in_the_env_it_was_trained_in() -> None:
     stand-still ending of 2 and the speed-scaled crash: deployed, its env has none of them
     (else its returns would differ from the same run's ``snnkart eval``)."""
     from snnkart.contract.manifest import Manifest
-    from snnkart.eval.deploy import make_policy_env
+    from snnkart.eval.closed_loop import make_policy_env
 
     env = make_policy_env(Manifest.read(OLD_EXPORT.with_suffix(".manifest.json")), None, None)
     try:

@@ -14,7 +14,7 @@ import nir
 import pytest
 
 import snnkart.backends.loading
-from snnkart.eval.deploy import DeployRequest, run_deploy
+from snnkart.eval.closed_loop import DeployRequest, run_deploy
 
 POLICY = Path(__file__).parent / "data" / "policies" / "grid-snn-nir-8ddd6dd" / "policy.nir"
 

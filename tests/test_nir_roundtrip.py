@@ -20,7 +20,7 @@ from snntorch.import_nir import import_from_nir
 from tiny_runs import train_tiny
 
 from snnkart.backends.reference import NIRReference
-from snnkart.eval.deploy import make_policy_env
+from snnkart.eval.closed_loop import make_policy_env
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.trained import TorchPredictor, load_run
 

@@ -262,7 +262,7 @@ SUMMARY_LINES = {
 def test_deploy_prints_what_it_printed_from_a_dict(name: str) -> None:
     """The lines ``snnkart deploy`` prints, from the typed record, are what the code before it
     printed from the same file (recorded with that code)."""
-    from snnkart.eval.deploy import summary_lines
+    from snnkart.eval.closed_loop import summary_lines
 
     assert summary_lines(DeployRecord.read(DATA / name)) == SUMMARY_LINES[name]
 
@@ -284,7 +284,7 @@ def test_study_md_from_the_typed_record_is_what_it_was() -> None:
     """``study.md`` rendered from the typed record equals the one the code before it wrote
     from the same study (recorded with that code)."""
     from snnkart.app.study_summary import ORIGINAL
-    from snnkart.report.study import markdown
+    from snnkart.report.study_document import markdown
 
     record = StudyRecord.read(DATA / "study.json")
     assert markdown(record, ORIGINAL) == (DATA / "study.md").read_text()

@@ -19,7 +19,7 @@ from tiny_runs import train_tiny
 from snnkart.backends.reference import NIRReference
 from snnkart.backends.registry import open_backend
 from snnkart.contract.manifest import Manifest, manifest_path
-from snnkart.eval.deploy import make_policy_env
+from snnkart.eval.closed_loop import make_policy_env
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.config import ConfigError, load_config
 from snnkart.rl.policies import SNNPolicy

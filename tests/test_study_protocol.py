@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from snnkart.app.study import load_study, plan
+from snnkart.app.study_run import load_study, plan
 from snnkart.errors import UsageError
 
 ROOT = Path(__file__).resolve().parents[1]

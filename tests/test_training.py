@@ -639,7 +639,7 @@ def test_replay_compare_races_the_trained_policies(
     from snnkart.app.replay import run_compare
     from snnkart.app.reporter import Silent
     from snnkart.eval.episodes import run_episodes
-    from snnkart.eval.replay import RACE_COLOURS
+    from snnkart.eval.ghosts import RACE_COLOURS
 
     dirs = [trained["ann"][0], trained["snn"][0]]
     gif = tmp_path / "cmp.gif"

@@ -14,9 +14,9 @@ if TYPE_CHECKING:
 
 
 def run_deploy_reported(request: DeployRequest, reporter: Reporter) -> DeployRecord:
-    """:func:`snnkart.eval.deploy.run_deploy` with progress, then its summary. A parity
+    """:func:`snnkart.eval.closed_loop.run_deploy` with progress, then its summary. A parity
     mismatch or a failed write is reported with the summary, then raised."""
-    from snnkart.eval.deploy import run_deploy
+    from snnkart.eval.closed_loop import run_deploy
 
     label = f"{request.backend} episodes"
     try:
@@ -35,7 +35,7 @@ def run_deploy_reported(request: DeployRequest, reporter: Reporter) -> DeployRec
 
 
 def report_summary(record: DeployRecord, out: Path | None, reporter: Reporter) -> None:
-    from snnkart.eval.deploy import summary_lines
+    from snnkart.eval.closed_loop import summary_lines
 
     for line in summary_lines(record):
         reporter.message(line)

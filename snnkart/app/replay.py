@@ -13,7 +13,7 @@ from snnkart.errors import UsageError
 
 
 def run_replay(run_dir: Path, mode: str, out: Path | None, every: int, reporter: Reporter) -> None:
-    from snnkart.eval.replay import frames, load_ghosts
+    from snnkart.eval.ghosts import frames, load_ghosts
     from snnkart.eval.video import check_video_path
     from snnkart.rl.checkpoint import load_checkpoint
     from snnkart.rl.config import read_run_config
@@ -60,7 +60,7 @@ def run_compare(run_dirs: list[Path], out: Path | None, seed: int, track: str | 
     """Up to four trained policies drive one seeded episode each on one track (the first
     run's, or ``track``), drawn together in distinct colours with a legend: in a window, or
     to a GIF/MP4. Returns how each episode ended."""
-    from snnkart.eval.replay import RACE_COLOURS, race_frames
+    from snnkart.eval.ghosts import RACE_COLOURS, race_frames
     from snnkart.eval.video import check_video_path
 
     if not 1 <= len(run_dirs) <= len(RACE_COLOURS):
@@ -89,7 +89,7 @@ def _race(run_dirs: list[Path], seed: int, track: str | None) -> tuple[list[Any]
 
     from snnkart.envs.tracks import load_track
     from snnkart.eval.episodes import run_episodes
-    from snnkart.eval.replay import Racer
+    from snnkart.eval.ghosts import Racer
     from snnkart.rl.trained import TorchPredictor, load_run
 
     runs = [load_run(d) for d in run_dirs]

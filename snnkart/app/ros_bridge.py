@@ -107,7 +107,7 @@ def _policy(policy: Path, backend: str, precision: str) -> tuple[Any, Any]:
         predictor: Any = TorchPredictor(run)
     else:
         from snnkart.backends.registry import open_backend
-        from snnkart.eval.deploy import make_policy_env
+        from snnkart.eval.closed_loop import make_policy_env
 
         if policy.suffix != ".nir":
             raise DeployError(f"--backend {backend} runs an exported policy.nir, not {policy}")

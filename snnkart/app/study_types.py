@@ -1,4 +1,4 @@
-"""The records a study is made of, shared by :mod:`snnkart.app.study` (planning, training) and
+"""The records a study is made of, shared by :mod:`snnkart.app.study_run` (planning, training) and
 :mod:`snnkart.app.study_eval` (evaluation): the study config and one planned run."""
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ class Run:
 
     @property
     def cell_label(self) -> str:
-        return f"{track_label(self.track)}/{self.env}-{self.policy}"
+        return f"{track_stem(self.track)}/{self.env}-{self.policy}"
 
     @property
     def label(self) -> str:
@@ -73,5 +73,6 @@ class Run:
         return f"{self.cell_label}:{self.variant}" if self.variant else self.cell_label
 
 
-def track_label(track: str) -> str:
+def track_stem(track: str) -> str:
+    """A study track's short name in cell and run labels: a built-in's name, a file's stem."""
     return Path(track).stem if track.endswith(".toml") else track

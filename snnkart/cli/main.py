@@ -12,9 +12,9 @@ from typing import Annotated
 import typer
 
 from snnkart.cli.console import ConsoleReporter, print_headline
-from snnkart.cli.energy import plot_app, report
 from snnkart.cli.guard import fail, guard, interrupted_exit
 from snnkart.cli.nir import nir_app
+from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep

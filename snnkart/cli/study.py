@@ -1,5 +1,5 @@
 """``snnkart study``: train every cell of a study for every seed, evaluate, and write the
-tables and plots (:mod:`snnkart.app.study`)."""
+tables and plots (:mod:`snnkart.app.study_run`)."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ def study(
     resumable: finished runs with the same config and training code are reused), evaluate each
     run, and write OUT/study.json, OUT/study.md and OUT/plots/. Run a long study in pieces with
     --only; the same command without it gathers every piece, reusing their runs."""
-    from snnkart.app.study import load_study, run_study
+    from snnkart.app.study_run import load_study, run_study
     from snnkart.cli.console import ConsoleReporter
     from snnkart.report.study_record import StudyRecord
 

@@ -1,5 +1,5 @@
 """``study.json``: what ``snnkart study`` trained, evaluated and deployed, per run and per cell
-(track, env, policy, variant). :mod:`snnkart.app.study` writes it, :mod:`snnkart.report.study`
+(track, env, policy, variant). :mod:`snnkart.app.study_run` writes it, :mod:`snnkart.report.study_document`
 renders it. Versioned by the rule in :mod:`snnkart.contract.records`; records of early v1
 studies (no variants, machine, evaluation backend or early stops) still load."""
 
@@ -19,7 +19,7 @@ SCHEMA_FILE = Path(__file__).with_name("study.schema.json")
 
 @dataclass(frozen=True, kw_only=True)
 class StudySettings:
-    """The study config as it ran (:class:`snnkart.app.study.StudyConfig`, validated there)."""
+    """The study config as it ran (:class:`snnkart.app.study_run.StudyConfig`, validated there)."""
 
     schema: str
     name: str

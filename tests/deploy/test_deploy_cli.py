@@ -24,7 +24,7 @@ from snnkart.backends.reference import NIRReference
 from snnkart.cli import app
 from snnkart.contract.manifest import manifest_path
 from snnkart.contract.records import to_data
-from snnkart.eval.deploy import DEPLOY_SCHEMA, DeployRequest, run_deploy
+from snnkart.eval.closed_loop import DEPLOY_SCHEMA, DeployRequest, run_deploy
 from snnkart.rl.trained import TorchPredictor, load_run
 
 # -- bad input on the command line -------------------------------------------------------------

@@ -29,7 +29,7 @@ from snnkart.backends.base import SpikeCounts, split_window
 from snnkart.backends.lava_sim import LavaSimPredictor
 from snnkart.backends.reference import NIRReference
 from snnkart.cli import app
-from snnkart.eval.deploy import make_policy_env
+from snnkart.eval.closed_loop import make_policy_env
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.ppo import normalize_obs

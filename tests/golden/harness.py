@@ -199,7 +199,7 @@ def _rasters(nir_path: Path, steps: int) -> dict[str, Any]:
     run of the float32 reference, for each backend and arithmetic."""
     from snnkart.backends.reference import NIRReference
     from snnkart.backends.registry import open_backend
-    from snnkart.eval.deploy import make_policy_env
+    from snnkart.eval.closed_loop import make_policy_env
 
     driver = NIRReference(nir_path, "float32")
     env = make_policy_env(driver.manifest, None, None)

@@ -32,7 +32,7 @@ from snnkart.app.protocol import data_problem
 from snnkart.app.provenance import machine_info
 from snnkart.app.reporter import Reporter
 from snnkart.app.study_eval import Evaluation, deploy_median_seeds, eval_backend, evaluate
-from snnkart.app.study_types import STUDY_SCHEMA, Run, StudyConfig, track_label
+from snnkart.app.study_types import STUDY_SCHEMA, Run, StudyConfig, track_stem
 from snnkart.envs.spec import ENV_REVISION
 from snnkart.envs.tracks import load_track
 from snnkart.errors import UsageError
@@ -88,7 +88,7 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     """Every run of the study, in a fixed order (cell by cell, seeds inside); with ``only``,
     the runs of the cells whose ``track/env-policy`` matches one of these glob patterns."""
     known = {f"{e}-{p}" for e in study.envs for p in study.policies}
-    known |= {f"{track_label(t)}/{c}" for t in study.tracks for c in list(known)}
+    known |= {f"{track_stem(t)}/{c}" for t in study.tracks for c in list(known)}
     for cell in study.cells:
         if cell not in known:
             raise UsageError(
@@ -98,14 +98,14 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     runs = []
     for track, env, policy in itertools.product(study.tracks, study.envs, study.policies):
         cell_sets = [*study.cells.get(f"{env}-{policy}", []),
-                     *study.cells.get(f"{track_label(track)}/{env}-{policy}", [])]  # fmt: skip
+                     *study.cells.get(f"{track_stem(track)}/{env}-{policy}", [])]  # fmt: skip
         for (variant, variant_sets), seed in itertools.product(variants, study.seeds):
             config = load_config(
                 overrides={"env": env, "policy": policy, "track": track, "seed": seed,
                            "total_steps": study.steps},
                 sets=["run.tensorboard=false", *study.sets, *cell_sets, *variant_sets],
             )  # fmt: skip
-            name = "-".join([track_label(track), env, policy, *([variant] if variant else []),
+            name = "-".join([track_stem(track), env, policy, *([variant] if variant else []),
                              f"s{seed}"])  # fmt: skip
             problem = data_problem(study.data, [config.seed], [config.track])
             if problem:  # a setting may change a run's seed or track
@@ -272,7 +272,7 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
 def write_documents(record: StudyRecord, out: Path) -> None:
     """``study.md`` (the tables beside the original's) and ``plots/`` from a study record."""
     from snnkart.app.study_summary import ORIGINAL
-    from snnkart.report.study import markdown, write_plots
+    from snnkart.report.study_document import markdown, write_plots
 
     write_text(out / "study.md", markdown(record, ORIGINAL))
     (out / "plots").mkdir(parents=True, exist_ok=True)
