@@ -25,6 +25,11 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
 - ``ppo-adv-norm-batch``: advantages normalised over the whole batch (in ``Trainer.update``)
   instead of over each minibatch; guarded by ``tests/test_ppo_loss.py``.
 - ``ppo-adv-norm-off``: advantages not normalised at all; guarded by ``tests/test_ppo_loss.py``.
+- ``synops-fan-in``: synaptic operations counted as spikes x fan-in instead of fan-out
+  (``ChainNetwork.fan_out``); guarded by the real-deployment counts test of
+  ``tests/test_energy.py``.
+- ``updates-one-step-short``: neuron updates count one clocked step fewer per window
+  (``split_window``); guarded by the same test.
 """
 
 from __future__ import annotations
@@ -46,6 +51,8 @@ MUTANTS = {
     "ppo-no-ratio-clip": ["tests/test_ppo_loss.py"],
     "ppo-adv-norm-batch": ["tests/test_ppo_loss.py"],
     "ppo-adv-norm-off": ["tests/test_ppo_loss.py"],
+    "synops-fan-in": ["tests/test_energy.py", "-k", "real_deployment"],
+    "updates-one-step-short": ["tests/test_energy.py", "-k", "real_deployment"],
 }
 
 
@@ -97,6 +104,24 @@ def apply(name: str) -> None:
         PPO.__init__ = init  # type: ignore[method-assign]
     elif name.startswith("ppo-"):
         _apply_ppo(name)
+    elif name == "synops-fan-in":
+        from snnkart.backends.network import ChainNetwork
+
+        ChainNetwork.fan_out = property(lambda self: (self.n_in, *self.sizes[:-1]))  # type: ignore[method-assign,assignment]
+    elif name == "updates-one-step-short":
+        import dataclasses
+
+        from snnkart.backends import base, lava_sim, open_loop, reference
+
+        real_split = base.split_window
+
+        def split_window(raster, sizes, T):  # type: ignore[no-untyped-def]
+            window = real_split(raster, sizes, T)
+            fewer = window.neuron_updates - np.asarray(sizes, dtype=np.int64)
+            return dataclasses.replace(window, neuron_updates=fewer)
+
+        for module in (base, reference, lava_sim, open_loop):
+            module.split_window = split_window  # type: ignore[attr-defined]
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 
