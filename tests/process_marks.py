@@ -1,18 +1,34 @@
 """Finding the processes a test started, by a mark in their environment, and Lava's shared
 memory: what must be gone when a command has ended.
 
-Shared memory is attributed to the process tree under test (:class:`ShmWatch`), so another
+Shared memory is attributed to the process tree under test (:class:`ShmCheck`), so another
 Lava process running on the machine at the same time neither fails a test nor hides a leak."""
 
 from __future__ import annotations
 
 import os
-import threading
 import time
 from collections.abc import Iterable
 from pathlib import Path
 
 SHM = "/dev/shm/"
+SEGMENT_SCRIPT = """
+import sys, time
+from multiprocessing import resource_tracker
+from multiprocessing.shared_memory import SharedMemory
+shm = SharedMemory(create=True, size=4096)
+if sys.argv[1] == "leak":  # nothing will unlink it, as after a SIGKILL of the whole tree
+    resource_tracker.unregister(shm._name, "shared_memory")
+print(shm.name.lstrip("/"), flush=True)
+sys.stdin.read()  # held until the test closes its end
+if sys.argv[1] == "hold":
+    shm.close()
+    time.sleep(float(sys.argv[2]) if len(sys.argv) > 2 else 0.0)  # unmapped, not yet unlinked
+    shm.unlink()
+"""
+"""``python -c SEGMENT_SCRIPT leak|hold [delay]``: a process that makes a ``psm_*`` segment,
+prints its name and holds it until its stdin closes; then ``hold`` unlinks it (``delay``
+seconds after unmapping it) and ``leak`` leaves it."""
 
 
 def marked_processes(mark: str) -> list[tuple[int, str]]:
@@ -68,48 +84,29 @@ def _all_pids() -> list[int]:
     return [int(entry) for entry in os.listdir("/proc") if entry.isdigit()]
 
 
-class ShmWatch:
-    """The shared memory of the processes marked ``mark``, watched while they run.
+class ShmCheck:
+    """What shared memory the processes marked ``mark`` leave behind: of the ``psm_*``
+    segments made since the check began, those no live process outside the marked tree has
+    mapped or open.
 
-    A thread records every ``psm_*`` segment a marked process maps or opens (every 20 ms).
-    :meth:`leaked` is then, of the segments created since the watch began, those the marked
-    processes held, and those no process holds at all (a segment made and abandoned between
-    two looks); a segment another live process holds is that process's, not a leak."""
+    Once the tree has ended nothing of its own holds its segments, so every segment it left
+    is counted, however briefly it lived; a segment another live process holds (another
+    Lava run on the machine) is that process's, and one another process is just unlinking
+    goes within the grace period. Only a segment that another process made and abandoned
+    while the check ran (a leak of its own) would be counted too."""
 
-    def __init__(self, mark: str, every_s: float = 0.02) -> None:
+    def __init__(self, mark: str) -> None:
         self.mark = mark
         self.before = shm_segments()
-        self.seen: set[str] = set()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._watch, args=(every_s,), daemon=True)
-
-    def start(self) -> ShmWatch:
-        self._thread.start()
-        return self
-
-    def stop(self) -> None:
-        """Stop watching (after a last look); :meth:`leaked` may be asked after."""
-        if not self._stop.is_set():
-            self._stop.set()
-            self._thread.join()
-            self.sample()
-
-    def _watch(self, every_s: float) -> None:
-        while not self._stop.wait(every_s):
-            self.sample()
-
-    def sample(self) -> None:
-        self.seen |= held_segments(pid for pid, _ in marked_processes(self.mark))
 
     def leaked(self, grace_s: float = 1.0) -> set[str]:
-        """Segments left behind by the marked processes, after up to ``grace_s`` for them
-        to go (a process that has just ended may be unlinking its segments)."""
+        """The segments left, after up to ``grace_s`` for them to go (a process that has
+        just ended may still be unlinking its own)."""
         deadline = time.monotonic() + grace_s
         while True:
             new = shm_segments() - self.before
             marked = {pid for pid, _ in marked_processes(self.mark)}
-            others = held_segments(pid for pid in _all_pids() if pid not in marked)
-            left = (new & self.seen) | (new - self.seen - others)
+            left = new - held_segments(pid for pid in _all_pids() if pid not in marked)
             if not left or time.monotonic() >= deadline:
                 return left
             time.sleep(0.05)

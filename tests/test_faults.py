@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from process_marks import ShmWatch, held_segments, marked_processes, shm_segments
+from process_marks import SEGMENT_SCRIPT, ShmCheck, marked_processes, shm_segments
 from tiny_runs import train_tiny
 
 from snnkart.export.nir_export import export_nir
@@ -132,7 +132,7 @@ def run_faulted(
     full_env["SNNKART_FAULT_LOG"] = str(log)
     if fault:
         full_env["SNNKART_FAULT"] = fault
-    shm = ShmWatch(mark).start()  # watching before the command starts
+    shm = ShmCheck(mark)
 
     def child_setup() -> None:
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # as in a terminal's foreground job
@@ -166,7 +166,6 @@ def run_faulted(
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
         proc.wait()
-        shm.stop()
         when = (
             f"within {FAULT_BOUND_S + 5:.0f} s of its fault"
             if str(exc) == "late"
@@ -191,7 +190,6 @@ def run_faulted(
     deadline = time.monotonic() + 1.0
     while marked_processes(mark) and time.monotonic() < deadline:
         time.sleep(0.05)
-    shm.stop()
     left = marked_processes(mark)
     for pid, _ in left:
         with contextlib.suppress(ProcessLookupError):
@@ -359,19 +357,6 @@ def test_a_killed_backend_is_reported_not_waited_for(
     count(f"SIGKILL {'worker' if victim is _kill_worker else 'Lava process'}", o)
 
 
-HOLD_SEGMENT = """
-import sys, time
-from multiprocessing.shared_memory import SharedMemory
-shm = SharedMemory(create=True, size=4096)
-print(shm.name, flush=True)
-try:
-    sys.stdin.read()  # until the test closes its end
-finally:
-    shm.close()
-    shm.unlink()
-"""
-
-
 @pytest.mark.lava
 @pytest.mark.timeout(200)
 def test_shared_memory_of_another_process_is_not_counted(policy: Path, tmp_path: Path) -> None:
@@ -382,11 +367,10 @@ def test_shared_memory_of_another_process_is_not_counted(policy: Path, tmp_path:
 
     def start_other(proc: subprocess.Popen, mark: str, log: Path) -> None:
         _wait_for_steps(log, proc)
-        other.append(subprocess.Popen([sys.executable, "-c", HOLD_SEGMENT], text=True,
+        other.append(subprocess.Popen([sys.executable, "-c", SEGMENT_SCRIPT, "hold"], text=True,
                                       stdin=subprocess.PIPE, stdout=subprocess.PIPE))  # fmt: skip
         assert other[0].stdout is not None
-        name.append(other[0].stdout.readline().strip().lstrip("/"))
-        return None
+        name.append(other[0].stdout.readline().strip())
 
     before = shm_segments()
     try:
@@ -417,19 +401,15 @@ def _kill_everything(proc: subprocess.Popen, mark: str, log: Path) -> float:
 def test_shared_memory_left_by_the_tree_under_test_is_reported(
     policy: Path, tmp_path: Path
 ) -> None:
-    before = shm_segments()
+    unheld = ShmCheck(mark="")  # no process is marked "": every new segment no one holds
     try:
         with pytest.raises(AssertionError, match=r"shared memory left behind: \['psm_"):
             run_faulted(deploy_args(policy, tmp_path / "out"), tmp_path, "step@20:SIGCONT",
                         act=_kill_everything)  # fmt: skip
     finally:  # remove what the killed deploy left, and only that
-        for name in shm_segments() - before - held_segments(map(int, _pids())):
+        for name in unheld.leaked(grace_s=0.0):
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(f"/dev/shm/{name}")
-
-
-def _pids() -> list[str]:
-    return [entry for entry in os.listdir("/proc") if entry.isdigit()]
 
 
 # -- train -----------------------------------------------------------------------------------

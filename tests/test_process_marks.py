@@ -1,32 +1,17 @@
-"""The fault tests' shared-memory check (:class:`process_marks.ShmWatch`) on plain Python
-processes: a segment the marked tree leaves is reported, whether it was seen held or made and
-abandoned between two looks; a segment another process holds is not."""
+"""The fault tests' shared-memory check (:class:`process_marks.ShmCheck`) on plain Python
+processes: a segment the marked tree leaves is reported; a segment another process holds, or
+is just unlinking, is not."""
 
 from __future__ import annotations
 
 import os
 import subprocess
 import sys
-import time
 import uuid
 from collections.abc import Iterator
 
 import pytest
-from process_marks import ShmWatch, shm_segments
-
-SEGMENT = """
-import sys
-from multiprocessing import resource_tracker
-from multiprocessing.shared_memory import SharedMemory
-shm = SharedMemory(create=True, size=4096)
-if sys.argv[1] == "leak":  # nothing will unlink it: a leak as a killed process tree leaves
-    resource_tracker.unregister(shm._name, "shared_memory")
-print(shm.name.lstrip("/"), flush=True)
-sys.stdin.read()  # held until the test closes its end
-if sys.argv[1] == "hold":
-    shm.close()
-    shm.unlink()
-"""
+from process_marks import SEGMENT_SCRIPT, ShmCheck, shm_segments
 
 
 @pytest.fixture
@@ -39,56 +24,56 @@ def segments() -> Iterator[list[str]]:
             os.unlink(f"/dev/shm/{name}")
 
 
-def _start(how: str, mark: str | None) -> tuple[subprocess.Popen[str], str]:
+def _start(mark: str | None, *args: str) -> tuple[subprocess.Popen[str], str]:
     env = {**os.environ, **({"SNNKART_TEST_MARK": mark} if mark else {})}
-    proc = subprocess.Popen([sys.executable, "-c", SEGMENT, how], env=env, text=True,
+    proc = subprocess.Popen([sys.executable, "-c", SEGMENT_SCRIPT, *args], env=env, text=True,
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE)  # fmt: skip
     assert proc.stdout is not None
     return proc, proc.stdout.readline().strip()
 
 
-def _until_seen(watch: ShmWatch, name: str, proc: subprocess.Popen[str]) -> None:
-    deadline = time.monotonic() + 10
-    while name not in watch.seen:
-        assert proc.poll() is None and time.monotonic() < deadline, "the watch never saw it"
-        time.sleep(0.01)
-
-
-def test_a_segment_the_marked_tree_held_and_left_is_reported(segments: list[str]) -> None:
+@pytest.mark.parametrize("end", ["exit", "SIGKILL"])
+def test_a_segment_the_marked_tree_left_is_reported(segments: list[str], end: str) -> None:
     mark = uuid.uuid4().hex
-    watch = ShmWatch(mark).start()
-    proc, name = _start("leak", mark)
+    check = ShmCheck(mark)
+    proc, name = _start(mark, "leak")
     segments.append(name)
-    _until_seen(watch, name, proc)
-    proc.kill()
-    proc.wait()
-    watch.stop()
-    assert watch.leaked(grace_s=0.2) == {name}
-
-
-def test_a_segment_made_and_abandoned_between_two_looks_is_reported(segments: list[str]) -> None:
-    mark = uuid.uuid4().hex
-    watch = ShmWatch(mark, every_s=3600).start()  # no look while the process lives
-    proc, name = _start("leak", mark)
-    segments.append(name)
+    if end == "SIGKILL":
+        proc.kill()
     proc.communicate("")
-    watch.stop()
-    assert name not in watch.seen
-    assert watch.leaked(grace_s=0.2) == {name}
+    assert check.leaked(grace_s=0.2) == {name}
 
 
-def test_a_segment_another_process_holds_is_not_reported(segments: list[str]) -> None:
+def test_a_segment_a_live_marked_process_holds_is_reported(segments: list[str]) -> None:
     mark = uuid.uuid4().hex
-    watch = ShmWatch(mark).start()
-    ours, our_name = _start("hold", mark)  # held, then unlinked: no leak
-    other, name = _start("hold", None)  # made while the watch runs, by an unmarked process
-    segments += [our_name, name]
-    _until_seen(watch, our_name, ours)
-    ours.communicate("")
-    watch.stop()
+    check = ShmCheck(mark)
+    proc, name = _start(mark, "hold")
+    segments.append(name)
     try:
-        assert name in shm_segments() - watch.before
-        assert watch.leaked(grace_s=0.2) == set()
+        assert check.leaked(grace_s=0.2) == {name}
     finally:
-        other.communicate("")
+        proc.communicate("")
+    assert check.leaked(grace_s=0.2) == set()  # unlinked when it ended
+
+
+def test_a_segment_another_process_holds_or_is_unlinking_is_not_reported(
+    segments: list[str],
+) -> None:
+    mark = uuid.uuid4().hex
+    check = ShmCheck(mark)
+    ours, our_name = _start(mark, "hold")  # held, then unlinked: no leak
+    other, name = _start(None, "hold", "0.5")  # made while the check runs, by another process
+    segments += [our_name, name]
+    ours.communicate("")
+    assert other.stdin is not None and other.stdout is not None
+    try:
+        assert name in shm_segments() - check.before
+        assert check.leaked(grace_s=0.2) == set()  # held by the other process
+        other.stdin.close()
+        assert check.leaked(grace_s=2.0) == set()  # unmapped, then unlinked 0.5 s later
+    finally:
+        if not other.stdin.closed:
+            other.stdin.close()
+        other.wait()
+        other.stdout.close()
     assert name not in shm_segments()
