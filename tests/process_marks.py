@@ -1,12 +1,13 @@
 """Finding the processes a test started, by a mark in their environment, and Lava's shared
 memory: what must be gone when a command has ended.
 
-Shared memory is attributed to the process tree under test (:class:`ShmCheck`), so another
+Shared memory is attributed to the process tree under test (:class:`ShmWatch`), so another
 Lava process running on the machine at the same time neither fails a test nor hides a leak."""
 
 from __future__ import annotations
 
 import os
+import threading
 import time
 from collections.abc import Iterable
 from pathlib import Path
@@ -80,33 +81,43 @@ def held_segments(pids: Iterable[int]) -> set[str]:
     return found
 
 
-def _all_pids() -> list[int]:
-    return [int(entry) for entry in os.listdir("/proc") if entry.isdigit()]
+class ShmWatch:
+    """The shared memory of the processes marked ``mark``: a thread looks, every ``every_s``
+    while they run, at the ``psm_*`` segments they have mapped or open; :meth:`leaked` is
+    those that still exist when they have ended.
 
+    A segment is attributed to the tree under test by its having held it, so a segment of
+    another process on the machine (another Lava run, even one that leaks) is never counted.
+    The one gap: a segment the tree makes and abandons between two looks."""
 
-class ShmCheck:
-    """What shared memory the processes marked ``mark`` leave behind: of the ``psm_*``
-    segments made since the check began, those no live process outside the marked tree has
-    mapped or open.
-
-    Once the tree has ended nothing of its own holds its segments, so every segment it left
-    is counted, however briefly it lived; a segment another live process holds (another
-    Lava run on the machine) is that process's, and one another process is just unlinking
-    goes within the grace period. Only a segment that another process made and abandoned
-    while the check ran (a leak of its own) would be counted too."""
-
-    def __init__(self, mark: str) -> None:
+    def __init__(self, mark: str, every_s: float = 0.02) -> None:
         self.mark = mark
-        self.before = shm_segments()
+        self.seen: set[str] = set()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._watch, args=(every_s,), daemon=True)
+
+    def start(self) -> ShmWatch:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop watching, after a last look."""
+        if not self._stop.is_set():
+            self._stop.set()
+            self._thread.join()
+            self.sample()
+
+    def _watch(self, every_s: float) -> None:
+        while not self._stop.wait(every_s):
+            self.sample()
+
+    def sample(self) -> None:
+        self.seen |= held_segments(pid for pid, _ in marked_processes(self.mark))
 
     def leaked(self, grace_s: float = 1.0) -> set[str]:
-        """The segments left, after up to ``grace_s`` for them to go (a process that has
-        just ended may still be unlinking its own)."""
+        """The segments the marked processes held that still exist, after up to ``grace_s``
+        for them to go (a process that has just ended may still be unlinking its own)."""
         deadline = time.monotonic() + grace_s
-        while True:
-            new = shm_segments() - self.before
-            marked = {pid for pid, _ in marked_processes(self.mark)}
-            left = new - held_segments(pid for pid in _all_pids() if pid not in marked)
-            if not left or time.monotonic() >= deadline:
-                return left
+        while (left := self.seen & shm_segments()) and time.monotonic() < deadline:
             time.sleep(0.05)
+        return left

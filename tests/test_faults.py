@@ -20,6 +20,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before anything imports pyg
 
 import contextlib
 import random
+import re
 import resource
 import signal
 import subprocess
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from process_marks import SEGMENT_SCRIPT, ShmCheck, marked_processes, shm_segments
+from process_marks import SEGMENT_SCRIPT, ShmWatch, marked_processes, shm_segments
 from tiny_runs import train_tiny
 
 from snnkart.export.nir_export import export_nir
@@ -132,7 +133,6 @@ def run_faulted(
     full_env["SNNKART_FAULT_LOG"] = str(log)
     if fault:
         full_env["SNNKART_FAULT"] = fault
-    shm = ShmCheck(mark)
 
     def child_setup() -> None:
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # as in a terminal's foreground job
@@ -149,6 +149,7 @@ def run_faulted(
             start_new_session=True,
             preexec_fn=child_setup,
         )
+    shm = ShmWatch(mark).start()
     fired_at = None
     try:
         if act is not None:
@@ -166,6 +167,7 @@ def run_faulted(
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
         proc.wait()
+        shm.stop()
         when = (
             f"within {FAULT_BOUND_S + 5:.0f} s of its fault"
             if str(exc) == "late"
@@ -190,6 +192,7 @@ def run_faulted(
     deadline = time.monotonic() + 1.0
     while marked_processes(mark) and time.monotonic() < deadline:
         time.sleep(0.05)
+    shm.stop()
     left = marked_processes(mark)
     for pid, _ in left:
         with contextlib.suppress(ProcessLookupError):
@@ -401,15 +404,11 @@ def _kill_everything(proc: subprocess.Popen, mark: str, log: Path) -> float:
 def test_shared_memory_left_by_the_tree_under_test_is_reported(
     policy: Path, tmp_path: Path
 ) -> None:
-    unheld = ShmCheck(mark="")  # no process is marked "": every new segment no one holds
-    try:
-        with pytest.raises(AssertionError, match=r"shared memory left behind: \['psm_"):
-            run_faulted(deploy_args(policy, tmp_path / "out"), tmp_path, "step@20:SIGCONT",
-                        act=_kill_everything)  # fmt: skip
-    finally:  # remove what the killed deploy left, and only that
-        for name in unheld.leaked(grace_s=0.0):
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(f"/dev/shm/{name}")
+    with pytest.raises(AssertionError, match=r"shared memory left behind: \['psm_") as failed:
+        run_faulted(deploy_args(policy, tmp_path / "out"), tmp_path, "step@20:SIGCONT",
+                    act=_kill_everything)  # fmt: skip
+    for name in re.findall(r"psm_\w+", str(failed.value).split("\n", 1)[0]):
+        os.unlink(f"/dev/shm/{name}")  # what the killed deploy left, and only that
 
 
 # -- train -----------------------------------------------------------------------------------

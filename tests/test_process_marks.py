@@ -1,17 +1,18 @@
-"""The fault tests' shared-memory check (:class:`process_marks.ShmCheck`) on plain Python
-processes: a segment the marked tree leaves is reported; a segment another process holds, or
-is just unlinking, is not."""
+"""The fault tests' shared-memory check (:class:`process_marks.ShmWatch`) on plain Python
+processes: a segment the marked tree held and left is reported; a segment of another process
+is not, whether it holds it, is unlinking it or has abandoned it."""
 
 from __future__ import annotations
 
 import os
 import subprocess
 import sys
+import time
 import uuid
 from collections.abc import Iterator
 
 import pytest
-from process_marks import SEGMENT_SCRIPT, ShmCheck, shm_segments
+from process_marks import SEGMENT_SCRIPT, ShmWatch, shm_segments
 
 
 @pytest.fixture
@@ -32,48 +33,63 @@ def _start(mark: str | None, *args: str) -> tuple[subprocess.Popen[str], str]:
     return proc, proc.stdout.readline().strip()
 
 
+def _until_seen(watch: ShmWatch, name: str, proc: subprocess.Popen[str]) -> None:
+    deadline = time.monotonic() + 10
+    while name not in watch.seen:
+        assert proc.poll() is None and time.monotonic() < deadline, "the watch never saw it"
+        time.sleep(0.01)
+
+
 @pytest.mark.parametrize("end", ["exit", "SIGKILL"])
 def test_a_segment_the_marked_tree_left_is_reported(segments: list[str], end: str) -> None:
     mark = uuid.uuid4().hex
-    check = ShmCheck(mark)
+    watch = ShmWatch(mark).start()
     proc, name = _start(mark, "leak")
     segments.append(name)
+    _until_seen(watch, name, proc)
     if end == "SIGKILL":
         proc.kill()
     proc.communicate("")
-    assert check.leaked(grace_s=0.2) == {name}
+    watch.stop()
+    assert watch.leaked(grace_s=0.2) == {name}
 
 
-def test_a_segment_a_live_marked_process_holds_is_reported(segments: list[str]) -> None:
+def test_a_segment_the_marked_tree_unlinks_late_is_not_reported(segments: list[str]) -> None:
     mark = uuid.uuid4().hex
-    check = ShmCheck(mark)
-    proc, name = _start(mark, "hold")
+    watch = ShmWatch(mark).start()
+    proc, name = _start(mark, "hold", "0.3")  # unmapped, then unlinked 0.3 s later
     segments.append(name)
+    _until_seen(watch, name, proc)
+    assert proc.stdin is not None
+    proc.stdin.close()
     try:
-        assert check.leaked(grace_s=0.2) == {name}
+        assert watch.leaked(grace_s=0.0) == {name}  # while it is still there
+        assert watch.leaked(grace_s=3.0) == set()
     finally:
-        proc.communicate("")
-    assert check.leaked(grace_s=0.2) == set()  # unlinked when it ended
+        proc.wait()
+        watch.stop()
 
 
-def test_a_segment_another_process_holds_or_is_unlinking_is_not_reported(
-    segments: list[str],
-) -> None:
+@pytest.mark.parametrize("how", ["hold", "leak"])
+def test_a_segment_of_another_process_is_not_reported(segments: list[str], how: str) -> None:
     mark = uuid.uuid4().hex
-    check = ShmCheck(mark)
+    watch = ShmWatch(mark).start()
     ours, our_name = _start(mark, "hold")  # held, then unlinked: no leak
-    other, name = _start(None, "hold", "0.5")  # made while the check runs, by another process
+    before = shm_segments()
+    other, name = _start(None, how, "1.0")  # made while the watch runs, by another process
     segments += [our_name, name]
+    _until_seen(watch, our_name, ours)
     ours.communicate("")
-    assert other.stdin is not None and other.stdout is not None
+    assert other.stdin is not None
     try:
-        assert name in shm_segments() - check.before
-        assert check.leaked(grace_s=0.2) == set()  # held by the other process
-        other.stdin.close()
-        assert check.leaked(grace_s=2.0) == set()  # unmapped, then unlinked 0.5 s later
+        assert watch.leaked(grace_s=0.0) == set()  # held by the other process
+        other.stdin.close()  # then unmapped, and unlinked 1 s later, or left for good
+        time.sleep(0.2)
+        watch.stop()
+        assert name in shm_segments() - before and our_name not in shm_segments()
+        assert watch.leaked(grace_s=0.0) == set()
     finally:
         if not other.stdin.closed:
             other.stdin.close()
         other.wait()
-        other.stdout.close()
-    assert name not in shm_segments()
+        watch.stop()
