@@ -3,8 +3,12 @@
     .venv/bin/python scripts/mutants.py [NAME ...]
 
 Each mutant breaks one claim in memory (a pytest plugin monkeypatches the code at the start
-of the session; no file is changed) and runs the tests that guard it; the mutant is *killed*
-when that run fails. The script exits non-zero if any mutant survives.
+of the session; no file is changed) and runs the tests that guard it. The plugin writes a
+marker file once the mutant is applied. The mutant is *killed* when the marker exists and
+pytest exits 1 with at least one failed test; it *survived* when pytest exits 0 with the
+marker written. Anything else (not applied, an import error, a usage or collection error:
+pytest's exit codes 2-5, or only errors and no failure) is an *error*: the run told nothing.
+The script exits 1 if any mutant survived, 2 if none survived but one could not be judged.
 
 - ``host-current-halved``: the host sends Lava half the first layer's current
   (``FixedPointNetwork.host_current``); guarded by ``tests/test_fixed_point.py``.
@@ -17,13 +21,25 @@ when that run fails. The script exits non-zero if any mutant survives.
   ``tests/deploy/test_deploy_parity.py``.
 - ``sb3-constant-lr``: ``bench_train`` gives Stable-Baselines3 a constant learning rate while
   snnkart anneals it (as it did before issue 13); guarded by ``tests/test_benchmarks.py``.
+- ``ppo-no-ratio-clip``: PPO's surrogate drops the ratio clipping
+  (``snnkart.rl.ppo_loss.clipped_surrogate``); guarded by ``tests/test_ppo_loss.py``.
+- ``ppo-adv-norm-batch``: advantages normalised over the whole batch (in ``Trainer.update``)
+  instead of over each minibatch; guarded by ``tests/test_ppo_loss.py``.
+- ``ppo-adv-norm-off``: advantages not normalised at all; guarded by ``tests/test_ppo_loss.py``.
+- ``synops-fan-in``: synaptic operations counted as spikes x fan-in instead of fan-out
+  (``ChainNetwork.fan_out``); guarded by the real-deployment counts test of
+  ``tests/test_energy.py``.
+- ``updates-one-step-short``: neuron updates count one clocked step fewer per window
+  (``split_window``); guarded by the same test.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,6 +49,11 @@ MUTANTS = {
     "deploy-mismatch": ["tests/deploy", "-k", "bit_exact or cli_deploy"],
     "parity-guard-off": ["tests/deploy/test_deploy_parity.py", "-k", "parity_mismatch"],
     "sb3-constant-lr": ["tests/test_benchmarks.py", "-k", "bench_train"],
+    "ppo-no-ratio-clip": ["tests/test_ppo_loss.py"],
+    "ppo-adv-norm-batch": ["tests/test_ppo_loss.py"],
+    "ppo-adv-norm-off": ["tests/test_ppo_loss.py"],
+    "synops-fan-in": ["tests/test_energy.py", "-k", "real_deployment"],
+    "updates-one-step-short": ["tests/test_energy.py", "-k", "real_deployment"],
 }
 
 
@@ -82,30 +103,104 @@ def apply(name: str) -> None:
             real_init(self, *args, learning_rate=constant, **kwargs)
 
         PPO.__init__ = init  # type: ignore[method-assign]
+    elif name.startswith("ppo-"):
+        _apply_ppo(name)
+    elif name == "synops-fan-in":
+        from snnkart.backends.network import ChainNetwork
+
+        ChainNetwork.fan_out = property(lambda self: (self.n_in, *self.sizes[:-1]))  # type: ignore[method-assign,assignment]
+    elif name == "updates-one-step-short":
+        import dataclasses
+
+        from snnkart.backends import backend, base, open_loop
+
+        real_split = base.split_window
+
+        def split_window(raster, sizes, *args, **kwargs):  # type: ignore[no-untyped-def]
+            window = real_split(raster, sizes, *args, **kwargs)
+            fewer = window.neuron_updates - np.asarray(sizes, dtype=np.int64)
+            return dataclasses.replace(window, neuron_updates=fewer)
+
+        for module in (base, backend, open_loop):
+            module.split_window = split_window  # type: ignore[attr-defined]
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 
 
+def _apply_ppo(name: str) -> None:
+    import dataclasses
+
+    import torch
+
+    import snnkart.rl.ppo
+    import snnkart.rl.ppo_loss
+
+    real = snnkart.rl.ppo_loss.clipped_surrogate
+
+    def unclipped(log_prob, old_log_prob, advantages, clip_coef, norm_adv):  # type: ignore[no-untyped-def]
+        logratio = log_prob - old_log_prob
+        ratio = logratio.exp()
+        adv = snnkart.rl.ppo_loss.normalise_advantages(advantages) if norm_adv else advantages
+        return (-adv * ratio).mean(), ratio, logratio
+
+    def unnormalised(log_prob, old_log_prob, advantages, clip_coef, norm_adv):  # type: ignore[no-untyped-def]
+        return real(log_prob, old_log_prob, advantages, clip_coef, False)
+
+    mutant = unclipped if name == "ppo-no-ratio-clip" else unnormalised
+    snnkart.rl.ppo_loss.clipped_surrogate = mutant
+    snnkart.rl.ppo.clipped_surrogate = mutant  # type: ignore[attr-defined]
+    if name == "ppo-adv-norm-batch":
+        Trainer = snnkart.rl.ppo.Trainer
+        real_update = Trainer.update
+
+        def update(self, b):  # type: ignore[no-untyped-def]
+            adv = b.advantages
+            adv = (adv - adv.mean()) / (adv.std() + 1e-8) if self.cfg.ppo.norm_adv else adv
+            return real_update(self, dataclasses.replace(b, advantages=torch.as_tensor(adv)))
+
+        Trainer.update = update  # type: ignore[method-assign]
+
+
 def pytest_configure(config: object) -> None:  # the plugin: `-p mutants` with scripts/ on the path
     apply(os.environ["SNNKART_MUTANT"])
+    Path(os.environ["SNNKART_MUTANT_APPLIED"]).write_text(os.environ["SNNKART_MUTANT"])
+
+
+def verdict(name: str, returncode: int, stdout: str, applied: Path) -> str:
+    """``killed``, ``SURVIVED`` or ``ERROR: why`` for one mutant's pytest run."""
+    if not applied.is_file() or applied.read_text() != name:
+        return "ERROR: the mutant was never applied"
+    if returncode == 0:
+        return "SURVIVED"
+    if returncode != 1:
+        return f"ERROR: pytest exit code {returncode}"
+    if not re.search(r"\b\d+ failed\b", stdout):
+        return "ERROR: no test failed (errors only)"
+    return "killed"
 
 
 def main() -> int:
     names = sys.argv[1:] or list(MUTANTS)
-    survived = []
+    unknown = [n for n in names if n not in MUTANTS]
+    if unknown:
+        raise SystemExit(f"unknown mutant {unknown[0]!r}; choose from {', '.join(MUTANTS)}")
+    verdicts = {}
     for name in names:
-        env = {**os.environ, "SNNKART_MUTANT": name, "SDL_VIDEODRIVER": "dummy",
-               "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT / "scripts"),
-                                                           os.environ.get("PYTHONPATH")]))}  # fmt: skip
-        cmd = [sys.executable, "-m", "pytest", "-q", "-x", "-p", "mutants", "-p",
-               "no:cacheprovider", *MUTANTS[name]]  # fmt: skip
-        result = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
-        tail = (result.stdout.strip().splitlines() or [""])[-1]
-        killed = result.returncode != 0 and "error" not in tail.lower()
-        print(f"{name}: {'killed' if killed else 'SURVIVED'} ({tail})")
-        if not killed:
-            survived.append(name)
-    return 1 if survived else 0
+        with tempfile.TemporaryDirectory(prefix="snnkart-mutant-") as tmp:
+            applied = Path(tmp) / "applied"
+            env = {**os.environ, "SNNKART_MUTANT": name, "SNNKART_MUTANT_APPLIED": str(applied),
+                   "SDL_VIDEODRIVER": "dummy",
+                   "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT / "scripts"),
+                                                               os.environ.get("PYTHONPATH")]))}  # fmt: skip
+            cmd = [sys.executable, "-m", "pytest", "-q", "-x", "-p", "mutants", "-p",
+                   "no:cacheprovider", *MUTANTS[name]]  # fmt: skip
+            result = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
+            verdicts[name] = verdict(name, result.returncode, result.stdout, applied)
+        tail = (result.stdout.strip() or result.stderr.strip() or "no output").splitlines()[-1]
+        print(f"{name}: {verdicts[name]} ({tail})")
+    if "SURVIVED" in verdicts.values():
+        return 1
+    return 2 if any(v.startswith("ERROR") for v in verdicts.values()) else 0
 
 
 if __name__ == "__main__":

@@ -14,8 +14,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
+from snnkart.backends.reference import NIRReference
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import AnnCounts, Network, SnnCounts, host_ops
 from snnkart.energy.pricing import Comparison, ann_terms, snn_terms, total
@@ -24,6 +26,7 @@ from snnkart.errors import ProfileError
 
 ROOT = Path(__file__).resolve().parents[1]
 FIXTURE = ROOT / "tests" / "data" / "policies" / "grid-snn"
+COMMITTED_NIR = ROOT / "tests" / "data" / "policies" / "grid-snn-nir-8ddd6dd" / "policy.nir"
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
 
 
@@ -78,6 +81,72 @@ def test_counts_and_energy_of_a_hand_computed_network() -> None:
     assert nb["activation_sparsity"] == pytest.approx(1 - 4 / 12)
     assert snn.deployed() == {"host_macs": 16, "chip_synaptic_ops": 8, "chip_neuron_updates": 18,
                               "spikes": 5}  # fmt: skip
+
+
+def test_counts_of_a_real_deployment_against_its_rasters_by_hand(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A real deployment record (the committed grid SNN, 21 inputs -> 64 -> 64 -> 5 actions,
+    T = 8, on the reference in fixed point, pipelined like Lava: T + 1 rows per window, layer
+    i's logical steps in rows i..i+7), its counts recomputed by hand from the raw spike rasters
+    of every window, then the energy model's per-inference counts from the record."""
+    from snnkart.contract.records import to_data
+    from snnkart.eval.closed_loop import DeployRequest, run_deploy
+
+    rasters: list[np.ndarray] = []
+    real_step = NIRReference.step
+
+    def step(self: NIRReference, obs: np.ndarray) -> tuple[Any, np.ndarray]:
+        window, out = real_step(self, obs)
+        if self.arithmetic == "fixed":  # the deployed backend, not its float32 reference
+            rasters.append(window.raster.copy())
+        return window, out
+
+    monkeypatch.setattr(NIRReference, "step", step)
+    typed = run_deploy(DeployRequest(COMMITTED_NIR, "nir-ref", "fixed", episodes=2, seed=10_000))
+    record = to_data(typed)
+    assert record["network"] == {"n_in": 21, "sizes": [64, 64], "n_out": 5, "readout": True,
+                                 "input_scale": False}  # fmt: skip
+    assert record["manifest"]["num_steps"] == 8
+    n = len(rasters)
+    assert n == record["counts"]["env_steps"] == sum(e["length"] for e in record["episodes"])
+    assert {r.shape for r in rasters} == {(9, 128)}
+    layer = [slice(0, 64), slice(64, 128)]
+    spikes = [sum(int(r[i : i + 8, layer[i]].sum()) for r in rasters) for i in (0, 1)]
+    fill_drain = [sum(int(r[:, layer[i]].sum()) for r in rasters) - spikes[i] for i in (0, 1)]
+    assert min(spikes) > 0 and fill_drain[1] > 0  # every count below is tested, none is 0
+    fan_out = [64, 5]  # layer 1 drives layer 2; layer 2 drives the 5 readout units
+    assert record["counts"] == {
+        "env_steps": n,
+        "spikes": spikes,
+        "synops": [spikes[0] * 64, spikes[1] * 5],
+        "neuron_updates": [64 * 8 * n, 64 * 8 * n],
+        "pipeline_overhead": {
+            "spikes": fill_drain,
+            "synops": [fill_drain[0] * fan_out[0], fill_drain[1] * fan_out[1]],
+            "neuron_updates": [64 * 1 * n, 64 * 1 * n],  # 1 Dense delay: one extra row
+        },
+    }
+    for key in ("spikes", "synops", "neuron_updates"):  # the episodes add up to the whole
+        per_episode = [e["counts"][key] for e in record["episodes"]]
+        assert [sum(col) for col in zip(*per_episode, strict=True)] == record["counts"][key]
+    snn = SnnCounts.of_deploy(typed)
+    assert snn.spikes == pytest.approx([spikes[0] / n, spikes[1] / n])
+    assert snn.synops == pytest.approx([spikes[0] * 64 / n, 0.0])  # layer 2's: the readout
+    assert snn.neuron_updates == (512.0, 512.0)
+    assert snn.overhead_neuron_updates == (64.0, 64.0)
+    assert snn.deployed() == pytest.approx({
+        "host_macs": 21 * 64 + 64 * 5,
+        "chip_synaptic_ops": (spikes[0] + fill_drain[0]) * 64 / n,
+        "chip_neuron_updates": 128 * 9,
+        "spikes": (sum(spikes) + sum(fill_drain)) / n,
+    })  # fmt: skip
+    assert snn.neurobench() == pytest.approx({
+        "effective_macs": 8 * 21 * 64 + 64 * 5,
+        "effective_acs": spikes[0] * 64 / n,
+        "dense_ops": 8 * 21 * 64 + 8 * 64 * 64 + 64 * 5,
+        "activation_sparsity": 1 - sum(spikes) / (n * 128 * 8),
+    })  # fmt: skip
 
 
 def test_counts_of_three_layers_rate_encoding_and_continuous_actions() -> None:

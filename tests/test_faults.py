@@ -20,6 +20,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # before anything imports pyg
 
 import contextlib
 import random
+import re
 import resource
 import signal
 import subprocess
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from process_marks import marked_processes, shm_segments
+from process_marks import SEGMENT_SCRIPT, ShmWatch, marked_processes, shm_segments
 from tiny_runs import train_tiny
 
 from snnkart.export.nir_export import export_nir
@@ -132,7 +133,6 @@ def run_faulted(
     full_env["SNNKART_FAULT_LOG"] = str(log)
     if fault:
         full_env["SNNKART_FAULT"] = fault
-    shm_before = shm_segments()
 
     def child_setup() -> None:
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # as in a terminal's foreground job
@@ -149,6 +149,7 @@ def run_faulted(
             start_new_session=True,
             preexec_fn=child_setup,
         )
+    shm = ShmWatch(mark).start()
     fired_at = None
     try:
         if act is not None:
@@ -166,6 +167,7 @@ def run_faulted(
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
         proc.wait()
+        shm.stop()
         when = (
             f"within {FAULT_BOUND_S + 5:.0f} s of its fault"
             if str(exc) == "late"
@@ -188,14 +190,16 @@ def run_faulted(
     )  # fmt: skip
     # The worker reaps its Lava session before the command exits; /proc may lag a moment.
     deadline = time.monotonic() + 1.0
-    while (marked_processes(mark) or shm_segments() - shm_before) and time.monotonic() < deadline:
+    while marked_processes(mark) and time.monotonic() < deadline:
         time.sleep(0.05)
+    shm.stop()
     left = marked_processes(mark)
     for pid, _ in left:
         with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
     assert left == [], f"processes left behind: {left}\n{outcome.context()}"
-    assert shm_segments() - shm_before == set(), f"shared memory left behind\n{outcome.context()}"
+    leaked = shm.leaked()
+    assert not leaked, f"shared memory left behind: {sorted(leaked)}\n{outcome.context()}"
     assert "Traceback" not in outcome.stderr, outcome.context()
     return outcome
 
@@ -354,6 +358,57 @@ def test_a_killed_backend_is_reported_not_waited_for(
     assert o.took_s <= FAULT_BOUND_S, o.context()
     assert not (tmp_path / "out" / "deploy.json").exists()
     count(f"SIGKILL {'worker' if victim is _kill_worker else 'Lava process'}", o)
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(200)
+def test_shared_memory_of_another_process_is_not_counted(policy: Path, tmp_path: Path) -> None:
+    """Another process (unmarked, as another user's Lava would be) creates and holds a segment
+    while the deploy runs: the deploy is not blamed for it (a diff of all of /dev/shm was)."""
+    other: list[subprocess.Popen] = []
+    name: list[str] = []
+
+    def start_other(proc: subprocess.Popen, mark: str, log: Path) -> None:
+        _wait_for_steps(log, proc)
+        other.append(subprocess.Popen([sys.executable, "-c", SEGMENT_SCRIPT, "hold"], text=True,
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE))  # fmt: skip
+        assert other[0].stdout is not None
+        name.append(other[0].stdout.readline().strip())
+
+    before = shm_segments()
+    try:
+        o = run_faulted(deploy_args(policy, tmp_path / "out", episodes=1), tmp_path,
+                        "step@20:SIGCONT", act=start_other)  # fmt: skip
+        assert o.returncode == 0, o.context()
+        assert name[0] in shm_segments() - before, "the other segment was not there at the check"
+    finally:
+        for p in other:
+            p.communicate("")  # the holder unlinks its segment
+    assert name[0] not in shm_segments()
+
+
+def _kill_everything(proc: subprocess.Popen, mark: str, log: Path) -> float:
+    """Stop every process of the deploy, then kill them all: nothing, not even Python's
+    resource tracker, is left to unlink Lava's shared memory."""
+    _wait_for_steps(log, proc)
+    pids = [pid for pid, _ in marked_processes(mark)]
+    for sig in (signal.SIGSTOP, signal.SIGKILL):
+        for pid in pids:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, sig)
+    return time.monotonic()
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(200)
+def test_shared_memory_left_by_the_tree_under_test_is_reported(
+    policy: Path, tmp_path: Path
+) -> None:
+    with pytest.raises(AssertionError, match=r"shared memory left behind: \['psm_") as failed:
+        run_faulted(deploy_args(policy, tmp_path / "out"), tmp_path, "step@20:SIGCONT",
+                    act=_kill_everything)  # fmt: skip
+    for name in re.findall(r"psm_\w+", str(failed.value).split("\n", 1)[0]):
+        os.unlink(f"/dev/shm/{name}")  # what the killed deploy left, and only that
 
 
 # -- train -----------------------------------------------------------------------------------

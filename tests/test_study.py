@@ -229,6 +229,25 @@ def test_the_median_is_drawn_while_every_seed_trains_and_each_seed_to_its_end() 
     plt.close(fig)
 
 
+def test_the_median_band_is_the_median_of_three_seeds_not_their_mean() -> None:
+    """Three seeds whose mean and median differ at every step: the thick line is the median,
+    the band spans the lowest and the highest seed."""
+    runs = [
+        _run(seed=s, curve=Curve([1, 2, 3], finishes, [None] * 3))
+        for s, finishes in ((1, [0, 1, 2]), (2, [1, 2, 4]), (3, [8, 12, 30]))
+    ]
+    fig, ax = plt.subplots()
+    _band(ax, runs, "finishes", "blue", "ANN")
+    median = ax.get_lines()[0]
+    assert list(median.get_ydata()) == [1, 2, 4]  # the means would be 3, 5, 12
+    assert median.get_label() == "ANN (median of 3)"
+    (band,) = ax.collections
+    (outline,) = band.get_paths()
+    ys = sorted({float(y) for y in outline.vertices[:, 1]})
+    assert ys == [0, 1, 2, 8, 12, 30]  # min and max per step, nothing else
+    plt.close(fig)
+
+
 @pytest.mark.timeout(600)
 def test_an_ablation_trains_every_variant_and_reports_its_spikes(tmp_path: Path) -> None:
     cfg = _write_study(tmp_path / "ablation.toml",

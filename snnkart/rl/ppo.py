@@ -33,6 +33,7 @@ from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
 from snnkart.rl.policies import policy_for
+from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
 from snnkart.rl.run_dir import RunDir
 from snnkart.rl.stopping import check, stopped
@@ -299,21 +300,10 @@ class Trainer:
         """The PPO loss of one minibatch, its parts, and the probability ratios."""
         p = self.cfg.ppo
         out = self.policy(mb.obs, mb.raw, action=mb.actions, input_spikes=mb.spikes)
-        logratio = out.log_prob - mb.logprobs
-        ratio = logratio.exp()
-        adv = mb.advantages
-        if p.norm_adv:
-            adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-        pg_loss = torch.max(
-            -adv * ratio, -adv * ratio.clamp(1 - p.clip_coef, 1 + p.clip_coef)
-        ).mean()
-        if p.clip_vloss:
-            v_clipped = mb.values + (out.value - mb.values).clamp(-p.clip_coef, p.clip_coef)
-            v_loss = (
-                0.5 * torch.max((out.value - mb.returns) ** 2, (v_clipped - mb.returns) ** 2).mean()
-            )
-        else:
-            v_loss = 0.5 * ((out.value - mb.returns) ** 2).mean()
+        pg_loss, ratio, logratio = clipped_surrogate(
+            out.log_prob, mb.logprobs, mb.advantages, p.clip_coef, p.norm_adv
+        )
+        v_loss = value_loss(out.value, mb.values, mb.returns, p.clip_coef, p.clip_vloss)
         entropy = out.entropy.mean()
         loss = pg_loss - self.ent_coef * entropy + p.vf_coef * v_loss
         if self.rate_reg > 0.0 and out.rates is not None:
