@@ -21,7 +21,7 @@ from deploy_helpers import (
     SUBPROCESS_ENV,
     plain_chain_graph,
 )
-from process_marks import marked_processes, shm_segments
+from process_marks import ShmWatch, marked_processes
 
 from snnkart.backends.lava_params import lava_spec
 from snnkart.backends.lava_sim import LavaWorker
@@ -97,7 +97,7 @@ def test_deploy_without_lava_fails_clearly(exported: Path, tmp_path: Path) -> No
 @pytest.mark.timeout(120)
 def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: Path) -> None:
     mark = uuid.uuid4().hex
-    shm_before = shm_segments()
+    shm = ShmWatch(mark).start()  # the segments this deploy's processes hold, not another run's
     out = tmp_path / "out"
     args = [
         "deploy",
@@ -130,7 +130,8 @@ def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: 
             pytest.fail(f"the Lava worker did not start: {marked_processes(mark)}")
         time.sleep(3.0)  # ~250 env steps: well into the deploy, in the middle of an episode
         assert proc.poll() is None, "the deploy ended before it could be interrupted"
-        assert len(shm_segments() - shm_before) > 0  # Lava's shared memory exists while it runs
+        shm.sample()
+        assert shm.seen  # Lava's shared memory exists while it runs
         os.killpg(proc.pid, signal.SIGINT)
         t0 = time.monotonic()
         stdout, stderr = proc.communicate(timeout=10)
@@ -143,10 +144,11 @@ def test_sigint_to_the_process_group_stops_everything(exported: Path, tmp_path: 
     assert stopped < 10
     assert not (out / "deploy.json").exists()  # no partial record
     deadline = time.monotonic() + 3
-    while time.monotonic() < deadline and (marked_processes(mark) or shm_segments() - shm_before):
+    while time.monotonic() < deadline and marked_processes(mark):
         time.sleep(0.1)
+    shm.stop()
     assert marked_processes(mark) == [], "processes of the deploy survived Ctrl-C"
-    assert shm_segments() - shm_before == set(), "Lava's shared memory was left in /dev/shm"
+    assert shm.leaked(grace_s=3.0) == set(), "Lava's shared memory was left in /dev/shm"
     print(f"\nSIGINT: exit code {proc.returncode} after {stopped:.2f} s; {stderr.decode()[-300:]}")
 
 
