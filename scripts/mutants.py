@@ -31,6 +31,9 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
   ``tests/test_energy.py``.
 - ``updates-one-step-short``: neuron updates count one clocked step fewer per window
   (``split_window``); guarded by the same test.
+- ``resume-default-length``: ``train --resume`` trains to the command line's length (the
+  default 300,000 steps) instead of the run's own (``snnkart.rl.ppo._resolve_config``);
+  guarded by ``tests/test_resume_length.py``.
 """
 
 from __future__ import annotations
@@ -54,6 +57,7 @@ MUTANTS = {
     "ppo-adv-norm-off": ["tests/test_ppo_loss.py"],
     "synops-fan-in": ["tests/test_energy.py", "-k", "real_deployment"],
     "updates-one-step-short": ["tests/test_energy.py", "-k", "real_deployment"],
+    "resume-default-length": ["tests/test_resume_length.py", "-k", "keeps"],
 }
 
 
@@ -123,6 +127,15 @@ def apply(name: str) -> None:
 
         for module in (base, backend, open_loop):
             module.split_window = split_window  # type: ignore[attr-defined]
+    elif name == "resume-default-length":
+        import snnkart.rl.ppo
+
+        real_resolve = snnkart.rl.ppo._resolve_config
+
+        def resolve(cfg, run_dir, resume, total_steps):  # type: ignore[no-untyped-def]
+            return real_resolve(cfg, run_dir, resume, cfg.total_steps if resume else total_steps)
+
+        snnkart.rl.ppo._resolve_config = resolve  # type: ignore[assignment]
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 

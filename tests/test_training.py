@@ -274,7 +274,7 @@ def test_resume_continues_from_the_checkpoint(tmp_path: Path) -> None:
     assert [r["global_step"] for r in metrics(run_dir)] == [BATCH, 2 * BATCH]
 
     longer = tiny_config("steer", "snn", total_steps=2 * STEPS)
-    trainer = Trainer(longer, run_dir, resume=True)
+    trainer = Trainer(longer, run_dir, resume=True, total_steps=2 * STEPS)
     try:
         assert trainer.progress.global_step == STEPS  # not 0
         assert trainer.progress.iteration == 2

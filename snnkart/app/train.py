@@ -10,19 +10,33 @@ from snnkart.envs.tracks import track_label
 from snnkart.rl.config import TrainConfig
 
 
-def run_training(cfg: TrainConfig, run_dir: Path, reporter: Reporter, resume: bool = False) -> int:
+def run_training(
+    cfg: TrainConfig,
+    run_dir: Path,
+    reporter: Reporter,
+    resume: bool = False,
+    total_steps: int | None = None,
+) -> int:
     """Train; return the exit code (0, or 130 after Ctrl-C and 143 after SIGTERM, both with a
-    checkpoint saved)."""
+    checkpoint saved). A resume keeps the run's own config and length; ``total_steps`` extends
+    (or shortens) it, and says so."""
     from snnkart.rl.ppo import Trainer
 
-    trainer = Trainer(cfg, run_dir, resume=resume)
+    trainer = Trainer(cfg, run_dir, resume=resume, total_steps=total_steps)
     cfg = trainer.cfg
+    total = trainer.num_iterations * cfg.batch_size
+    rounded = f" (rounded up to whole rollouts: {total:,})" if total != cfg.total_steps else ""
     reporter.message(
         f"training {cfg.policy.upper()} on {cfg.env}/{track_label(trainer.track.name, cfg.track)} "
-        f"({cfg.action_mode}), {cfg.total_steps:,} steps, seed {cfg.seed} -> {run_dir}"
+        f"({cfg.action_mode}), {cfg.total_steps:,} steps{rounded}, seed {cfg.seed} -> {run_dir}"
         + (f" (resuming at step {trainer.progress.global_step:,})" if resume else "")
     )
-    total = trainer.num_iterations * cfg.batch_size
+    before = trainer.resumed_length
+    if before is not None and before != cfg.total_steps:
+        reporter.message(
+            f"the run was {before:,} steps long; it is now {cfg.total_steps:,} (its learning-rate "
+            "and entropy schedules stretch to the new length; config.toml records it)"
+        )
     with reporter.training(total, trainer.progress.global_step) as on_iteration:
         try:
             result = trainer.train(on_iteration)
@@ -35,8 +49,8 @@ def run_training(cfg: TrainConfig, run_dir: Path, reporter: Reporter, resume: bo
         ended = f"stopped early ({stop.checks} checks in a row at >= {stop.success:.0%} success)"
     reporter.message(
         f"{ended} at step {result.global_step:,}: "
-        f"{result.finishes:,} laps finished in {result.episodes:,} episodes; first finish at "
-        f"{'never' if first < 0 else f'step {first:,}'}"
+        f"{result.finishes:,} laps finished in {result.episodes:,} episodes; "
+        + ("no lap finished yet" if first < 0 else f"the first at step {first:,}")
     )
     reporter.message(
         f"checkpoint {run_dir / 'checkpoint.pt'}, metrics {run_dir / 'metrics.jsonl'}, "

@@ -89,7 +89,9 @@ def run(request: WorkerRequest) -> int:
         cfg = load_config(request.config)
         if not request.resume:
             load_track(cfg.track)
-        return run_training(cfg, Path(request.out), reporter, resume=request.resume)
+        # a launch list says how long each run is: resuming with a longer one extends it
+        total = cfg.total_steps if request.resume else None
+        return run_training(cfg, Path(request.out), reporter, request.resume, total)
     from snnkart.app.evaluate import run_eval, run_eval_exported
 
     if request.episodes < 1:

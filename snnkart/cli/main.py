@@ -118,7 +118,10 @@ def train(
         str | None, typer.Option("--track", "-t", help="big_S, small_S or a file")
     ] = None,
     policy: Annotated[str | None, typer.Option(help="ann or snn")] = None,
-    steps: Annotated[int | None, typer.Option(help="total env steps")] = None,
+    steps: Annotated[
+        int | None,
+        typer.Option(help="total env steps (with --resume: extend the run to this many)"),
+    ] = None,
     seed: Annotated[int | None, typer.Option(help="random seed")] = None,
     action_mode: Annotated[str | None, typer.Option(help="discrete or continuous")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="run directory")] = None,
@@ -148,7 +151,8 @@ def train(
 
             load_track(cfg.track)
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
-        code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume=resume)
+        extend = steps if resume else None  # a resume keeps the run's length unless --steps
+        code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume, extend)
     except KeyboardInterrupt as exc:  # before training began: nothing to save yet
         interrupted_exit(exc, "stopped before training began; the run directory is as it was")
     except (CheckpointWriteError, OSError) as exc:

@@ -41,16 +41,18 @@ from snnkart.rl.stopping import check, stopped
 __all__ = ["Progress", "RunError", "Trainer", "compute_gae", "normalize_obs", "policy_for"]
 
 
-def _resolve_config(cfg: TrainConfig, run_dir: Path, resume: bool) -> TrainConfig:
-    """The config to train with: ``cfg``, or on resume the run's own (with ``cfg``'s
-    total_steps, so a run can be extended)."""
+def _resolve_config(
+    cfg: TrainConfig, run_dir: Path, resume: bool, total_steps: int | None
+) -> TrainConfig:
+    """The config to train with: ``cfg``, or on resume the run's own, with its own length
+    unless ``total_steps`` extends (or shortens) it explicitly."""
     config_path = run_dir / "config.toml"
     if resume:
         if not config_path.is_file():
             raise RunError(f"nothing to resume in {run_dir}: no config.toml there")
         saved = read_run_config(run_dir)
-        if cfg.total_steps != saved.total_steps:
-            saved = saved.model_copy(update={"total_steps": cfg.total_steps})
+        if total_steps is not None and total_steps != saved.total_steps:
+            saved = saved.model_copy(update={"total_steps": total_steps})
         return saved
     if config_path.exists():
         raise RunError(
@@ -62,15 +64,26 @@ def _resolve_config(cfg: TrainConfig, run_dir: Path, resume: bool) -> TrainConfi
 class Trainer:
     """Trains one policy into one run directory (config, checkpoints, metrics, trajectories)."""
 
-    def __init__(self, cfg: TrainConfig, run_dir: Path, resume: bool = False) -> None:
+    def __init__(
+        self,
+        cfg: TrainConfig,
+        run_dir: Path,
+        resume: bool = False,
+        total_steps: int | None = None,
+    ) -> None:
+        """``resume``: continue the run in ``run_dir`` with its own config and length (``cfg``
+        is not used); ``total_steps`` gives it another length (its schedules stretch to it)."""
         self.run_dir = Path(run_dir)
-        self.cfg = cfg = _resolve_config(cfg, self.run_dir, resume)
+        self.cfg = cfg = _resolve_config(cfg, self.run_dir, resume, total_steps)
+        self.resumed_length: int | None = None
+        """On resume, the length the run was training for before this session."""
         self.out = RunDir(self.run_dir, cfg.run.tensorboard)
         # A resumed run trains on the track its checkpoint carries (the file may have moved),
         # in the env it was trained in, whatever the defaults are today; with cfg's length.
         opened = open_run(self.run_dir) if resume and self.out.latest.is_file() else None
         if opened is not None:
             self.track = opened.track
+            self.resumed_length = opened.schedule.total_steps
             self.cfg = cfg = opened.config.model_copy(update={"total_steps": cfg.total_steps})
         else:
             self.track = load_track(cfg.track)
@@ -366,7 +379,9 @@ def train(
     ``save_every_iteration``: see :meth:`Trainer.train`."""
     if threads is not None:
         torch.set_num_threads(threads)
-    trainer = Trainer(cfg, run_dir, resume=(Path(run_dir) / "config.toml").is_file())
+    resume = (Path(run_dir) / "config.toml").is_file()
+    # a launcher's list says how long each run is: resuming with a longer one extends it
+    trainer = Trainer(cfg, run_dir, resume=resume, total_steps=cfg.total_steps if resume else None)
     try:
         progress = trainer.train(on_iteration, save_every_iteration)
     finally:
