@@ -8,6 +8,8 @@ its traceback. Each class keeps the built-in base it had (``ValueError`` for bad
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
 from typing import Any
 
 
@@ -96,3 +98,9 @@ class ProfileError(SnnkartError, ValueError):
 
 class ReportError(SnnkartError, ValueError):
     """An energy report cannot be made from the inputs given."""
+
+
+def did_you_mean(word: str, choices: Iterable[str]) -> str:
+    """`` (did you mean X?)`` for the choice closest to a misspelled ``word``, else ``""``."""
+    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""

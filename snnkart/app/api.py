@@ -27,7 +27,7 @@ import numpy as np
 from snnkart.app.reporter import Silent
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.eval_record import EvalRecord
-from snnkart.errors import UsageError
+from snnkart.errors import UsageError, did_you_mean
 
 BACKENDS = ("torch", "nir-ref", "lava-sim")
 """Where a loaded policy runs: the trained torch policy (a run directory), or its NIR export
@@ -85,7 +85,10 @@ def load_policy(
     ``snnkart eval --backend`` does. ``checkpoint``: a run's other checkpoint file."""
     path = Path(path)
     if backend not in BACKENDS:
-        raise UsageError(f"unknown backend {backend!r}; choose {', '.join(BACKENDS)}")
+        raise UsageError(
+            f"unknown backend {backend!r}{did_you_mean(backend, BACKENDS)}; choose "
+            f"{', '.join(BACKENDS)}"
+        )
     if not path.exists():
         raise UsageError(f"{path} does not exist; give a run directory or a policy.nir")
     if backend == "torch":

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 from snnkart.backends.base import Arithmetic
 from snnkart.backends.loading import LoadedPolicy, as_policy
-from snnkart.errors import DeployError
+from snnkart.errors import DeployError, did_you_mean
 
 if TYPE_CHECKING:
     from snnkart.backends.backend import Backend
@@ -37,7 +37,10 @@ whose ``open_engine`` starts its engine; a new engine adds one line here."""
 def arithmetic_for(backend: str, precision: str) -> Arithmetic:
     """The arithmetic ``--backend backend --precision precision`` asks for."""
     if backend not in PRECISIONS:
-        raise DeployError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+        raise DeployError(
+            f"unknown backend {backend!r}{did_you_mean(backend, BACKENDS)}; choose one of "
+            f"{', '.join(BACKENDS)}"
+        )
     words = PRECISIONS[backend]
     if precision not in words:
         raise DeployError(f"--precision for {backend} is {' or '.join(words)}, not {precision!r}")
@@ -47,7 +50,10 @@ def arithmetic_for(backend: str, precision: str) -> Arithmetic:
 def backend_class(backend: str) -> type[Backend]:
     """The :class:`~snnkart.backends.backend.Backend` subclass of ``backend``."""
     if backend not in BACKEND_CLASSES:
-        raise DeployError(f"unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+        raise DeployError(
+            f"unknown backend {backend!r}{did_you_mean(backend, BACKENDS)}; choose one of "
+            f"{', '.join(BACKENDS)}"
+        )
     module, name = BACKEND_CLASSES[backend].split(":")
     cls: type[Backend] = getattr(importlib.import_module(module), name)
     return cls

@@ -18,7 +18,7 @@ from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
-from snnkart.errors import SnnkartError
+from snnkart.errors import SnnkartError, did_you_mean
 
 app = typer.Typer(
     name="snnkart",
@@ -221,7 +221,9 @@ def eval_(
         from snnkart.eval.request import BACKENDS, DeployRequest
 
         if backend not in BACKENDS:
-            fail(f"unknown backend {backend!r}; choose torch, nir-ref or lava-sim")
+            choices = ("torch", "nir-ref", "lava-sim")
+            fail(f"unknown backend {backend!r}{did_you_mean(backend, choices)}; choose torch, "
+                 "nir-ref or lava-sim")  # fmt: skip
         request = guard(
             lambda: DeployRequest(run_dir, backend, precision, episodes, seed, env, track, out)
         )

@@ -9,7 +9,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from snnkart.errors import EnvError
+from snnkart.errors import EnvError, did_you_mean
 
 ENV_IDS: dict[str, str] = {
     "grid": "snnkart/Grid-v0",
@@ -37,7 +37,7 @@ def resolve_env_name(name: str) -> str:
     key = name if name in ENV_ALIASES else name.lower()
     if key not in ENV_ALIASES:
         raise EnvError(
-            f"unknown env {name!r}; choose one of {', '.join(ENV_IDS)} "
+            f"unknown env {name!r}{did_you_mean(key, ENV_IDS)}; choose one of {', '.join(ENV_IDS)} "
             f"(also accepted: {', '.join(f'{n}_env' for n in ENV_IDS)}, {', '.join(ENV_IDS.values())})"
         )
     return ENV_ALIASES[key]

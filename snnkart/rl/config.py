@@ -25,7 +25,7 @@ from pydantic import (
 
 from snnkart.envs import resolve_env_name
 from snnkart.envs.spec import make_env
-from snnkart.errors import ConfigError
+from snnkart.errors import ConfigError, did_you_mean
 
 if TYPE_CHECKING:
     from snnkart.envs.tracks import Track
@@ -380,9 +380,23 @@ def load_config(
     return validate_config(data, source=str(path) if path else "command line")
 
 
+def config_keys() -> list[str]:
+    """Every key a config takes, dotted (``ppo.learning_rate``, ``seed``)."""
+    keys = []
+    for name, info in TrainConfig.model_fields.items():
+        section = info.annotation
+        if isinstance(section, type) and issubclass(section, BaseModel):
+            keys += [f"{name}.{key}" for key in section.model_fields]
+        else:
+            keys.append(info.alias or name)
+    return keys
+
+
 def read_run_config(run_dir: str | Path) -> TrainConfig:
     """The resolved training config saved in a run directory."""
     path = Path(run_dir) / "config.toml"
+    if not Path(run_dir).exists():
+        raise ConfigError(f"{run_dir} does not exist; pass the --out of a training run")
     if not path.is_file():
         raise ConfigError(
             f"{run_dir} is not a run directory (no config.toml); pass the --out of a training run"
@@ -401,7 +415,8 @@ def validate_config(
         for err in exc.errors():
             loc = ".".join(str(x) for x in err["loc"])
             if err["type"] == "extra_forbidden":
-                lines.append(f"unknown key {loc!r} (misspelled?)")
+                near = did_you_mean(loc, config_keys()).strip(" ()")
+                lines.append(f"unknown key {loc!r} (misspelled?{' ' + near if near else ''})")
             else:
                 msg = err["msg"].removeprefix("Value error, ")
                 lines.append(f"{loc}: {msg}" if loc else msg)
