@@ -29,6 +29,30 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
+
+def _print_version(value: bool) -> None:
+    if value:
+        from snnkart import __version__
+
+        typer.echo(f"snnkart {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version",
+            callback=_print_version,
+            is_eager=True,
+            help="print snnkart's version and exit",
+        ),
+    ] = False,
+) -> None:
+    """Options before the command."""
+
+
 EnvOpt = Annotated[
     str, typer.Option("--env", "-e", help="grid, gazebo or steer (or grid_env, gazebo_env, ...)")
 ]
@@ -111,20 +135,36 @@ def demo(
     print_headline(finished["report"], headline(finished["report"]))
 
 
-@app.command()
+@app.command(
+    epilog="Examples: snnkart train --env grid --policy snn --out runs/grid-snn  |  "
+    "snnkart train --resume --out runs/grid-snn  |  "
+    "snnkart train --set ppo.learning_rate=1e-3 --set snn.num_steps=4"
+)
 def train(
-    env: Annotated[str | None, typer.Option("--env", "-e", help="grid, gazebo or steer")] = None,
-    track: Annotated[
-        str | None, typer.Option("--track", "-t", help="big_S, small_S or a file")
+    env: Annotated[
+        str | None,
+        typer.Option("--env", "-e", help="grid, gazebo or steer", show_default="steer"),
     ] = None,
-    policy: Annotated[str | None, typer.Option(help="ann or snn")] = None,
+    track: Annotated[
+        str | None,
+        typer.Option("--track", "-t", help="big_S, small_S or a file", show_default="small_S"),
+    ] = None,
+    policy: Annotated[str | None, typer.Option(help="ann or snn", show_default="snn")] = None,
     steps: Annotated[
         int | None,
-        typer.Option(help="total env steps (with --resume: extend the run to this many)"),
+        typer.Option(
+            help="total env steps (with --resume: extend the run to this many)",
+            show_default="300000; with --resume the run's own",
+        ),
     ] = None,
-    seed: Annotated[int | None, typer.Option(help="random seed")] = None,
-    action_mode: Annotated[str | None, typer.Option(help="discrete or continuous")] = None,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="run directory")] = None,
+    seed: Annotated[int | None, typer.Option(help="random seed", show_default="1")] = None,
+    action_mode: Annotated[
+        str | None, typer.Option(help="discrete or continuous", show_default="discrete")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", help="run directory (default: runs/ENV-POLICY-TRACK-sSEED)"),
+    ] = None,
     config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config file")] = None,
     set_: Annotated[
         list[str] | None,
