@@ -4,6 +4,7 @@ and lines, written once for every command."""
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -22,11 +23,17 @@ def fmt(value: float | None, spec: str = ".2f") -> str:
     return "-" if value is None else format(value, spec)
 
 
-class ConsoleReporter:
-    """Messages on stdout (stderr with ``stderr=True``); transient progress bars."""
+LOG_EVERY = 10
+"""Iterations between the plain progress lines of a training whose output is not a terminal
+(a log file, nohup, a cluster job), as Stable-Baselines3 and CleanRL log."""
 
-    def __init__(self, stderr: bool = False) -> None:
-        self.console = Console(stderr=stderr)
+
+class ConsoleReporter:
+    """Messages on stdout (stderr with ``stderr=True``); transient progress bars in a terminal,
+    plain lines elsewhere."""
+
+    def __init__(self, stderr: bool = False, console: Console | None = None) -> None:
+        self.console = console or Console(stderr=stderr)
 
     def message(self, text: str) -> None:
         self.console.print(text, markup=False, highlight=False)
@@ -42,9 +49,12 @@ class ConsoleReporter:
 
     @contextlib.contextmanager
     def training(self, total: int, completed: int) -> Iterator[Callable[[dict[str, Any]], None]]:
+        if not self.console.is_terminal:
+            yield self._log_lines(total)
+            return
         columns = (
             TextColumn("[progress.description]{task.description}"),
-            BarColumn(),
+            BarColumn(bar_width=20),
             TextColumn("{task.completed:,}/{task.total:,} steps"),
             TextColumn("{task.fields[sps]} steps/s"),
             TextColumn("return {task.fields[ret]}"),
@@ -65,6 +75,23 @@ class ConsoleReporter:
                 )
 
             yield update
+
+    def _log_lines(self, total: int) -> Callable[[dict[str, Any]], None]:
+        """A plain line every ``LOG_EVERY`` iterations (and at the first and the last): step,
+        mean return, finished laps, steps per second, time since the start."""
+        start = time.monotonic()
+
+        def update(record: dict[str, Any]) -> None:
+            step, iteration = record["global_step"], record["iteration"]
+            if iteration % LOG_EVERY and iteration != 1 and step < total:
+                return
+            self.message(
+                f"step {step:,}/{total:,}  return {fmt(record['charts/episodic_return'])}  "
+                f"laps {record['charts/cumulative_finishes']:,}  "
+                f"{record['charts/SPS']:,.0f} steps/s  {time.monotonic() - start:,.0f} s"
+            )
+
+        return update
 
 
 class _Task:
