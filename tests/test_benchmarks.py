@@ -164,7 +164,11 @@ def test_bench_ros_measures_every_backend_over_a_real_rosmaster(tmp_path):
     assert results["latency_vs_torch"]["torch"] == 1.0
     real_time = results["torch_real_time"]
     assert real_time["finished"] == "2/2" and len(real_time["runs"]) == 2
-    assert all(r["commands_per_step"] > 0.9 for r in real_time["runs"])
+    # a control loop that sleeps after acting runs at 0.75 commands per step whatever the load;
+    # the fixed-grid loop at 0.95-0.98 alone and 0.91-0.93 beside a Lava deploy (the suite
+    # must pass while another snnkart job runs), where a busy moment may drop a few more ticks
+    rates = [r["commands_per_step"] for r in real_time["runs"]]
+    assert all(rate > 0.85 for rate in rates), rates
 
 
 def test_bench_sim2real_trains_both_and_evaluates_each_in_both_envs(tmp_path):
