@@ -85,7 +85,9 @@ def tiny_config(
 
 
 def train(cfg: TrainConfig, run_dir: Path, resume: bool = False) -> Trainer:
-    trainer = Trainer(cfg, run_dir, resume=resume)
+    """Train ``cfg`` into ``run_dir``; a resume runs to ``cfg``'s length (given explicitly, as
+    ``--steps`` does: a resume alone keeps the run's own)."""
+    trainer = Trainer(cfg, run_dir, resume=resume, total_steps=cfg.total_steps if resume else None)
     try:
         trainer.train()
     finally:
@@ -822,7 +824,7 @@ def test_a_run_made_before_a_default_changed_evaluates_and_resumes_in_its_own_en
         assert env.unwrapped.config.reward.stall == 0.0  # type: ignore[attr-defined]
     finally:
         env.close()
-    resumed = Trainer(load_config(overrides={"total_steps": 512}), run, resume=True)
+    resumed = Trainer(load_config(), run, resume=True, total_steps=512)
     try:
         assert resumed.env0.config.reward.stall == 0.0
         resumed.train()

@@ -7,7 +7,6 @@ The resolved config is written into every run directory (``config.toml``) and is
 from __future__ import annotations
 
 import sys
-import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -26,6 +25,7 @@ from pydantic import (
 from snnkart.envs import resolve_env_name
 from snnkart.envs.spec import make_env
 from snnkart.errors import ConfigError, did_you_mean
+from snnkart.rl.config_names import renamed_keys
 
 if TYPE_CHECKING:
     from snnkart.envs.tracks import Track
@@ -211,33 +211,6 @@ ENV_POLICY_DEFAULTS: dict[tuple[str, str], dict[str, dict[str, Any]]] = {
 }
 
 
-RENAMED_KEYS: dict[tuple[str, str], str] = {("ppo", "num_steps"): "rollout_steps"}
-"""Config keys that were renamed, ``(section, old) -> new``: the old name still loads (saved
-runs, old config files, ``--set``), with a warning where a user typed it."""
-
-
-def _renamed_keys(data: dict[str, Any], warn: bool) -> dict[str, Any]:
-    """``data`` with every renamed key under its new name; both names at once is an error."""
-    for (section, old), new in RENAMED_KEYS.items():
-        given = data.get(section)
-        if not isinstance(given, dict) or old not in given:
-            continue
-        if new in given:
-            raise ValueError(
-                f"{section}.{old} is the old name of {section}.{new}; give only {section}.{new}"
-            )
-        if warn:
-            warnings.warn(
-                f"{section}.{old} is deprecated: it is now {section}.{new} (the old name still "
-                "works for now)",
-                FutureWarning,
-                stacklevel=2,
-            )
-        given = {(new if k == old else k): v for k, v in given.items()}
-        data = {**data, section: given}
-    return data
-
-
 def _merge_defaults(data: dict[str, Any], defaults: dict[str, dict[str, Any]]) -> dict[str, Any]:
     for section, values in defaults.items():
         given = data.get(section)
@@ -276,7 +249,7 @@ class TrainConfig(BaseModel):
         if not isinstance(data, dict):
             return data
         resolved = bool((info.context or {}).get("resolved"))
-        data = _renamed_keys(data, warn=not resolved)
+        data = renamed_keys(data, warn=not resolved)
         if resolved:
             return data
         policy = str(data.get("policy", "snn"))
