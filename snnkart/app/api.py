@@ -35,6 +35,12 @@ on the numpy reference or on Lava's simulated Loihi (a run directory, exported o
 a ``.nir`` file)."""
 
 
+def _precision(backend: str, precision: str | None) -> str:
+    """The ``--precision`` word a spiking backend runs in: the one given, else its default
+    (lava-sim: fixed, Loihi's arithmetic; nir-ref: float32, torch's)."""
+    return precision or ("fixed" if backend == "lava-sim" else "float32")
+
+
 class Predictor(Protocol):
     """A policy that drives: ``predict(obs)`` the action for one observation, ``reset()`` at
     an episode's start, ``close()`` when done (stops Lava's processes; also on leaving a
@@ -100,7 +106,7 @@ def load_policy(
     from snnkart.backends.loading import load_policy as read_policy
     from snnkart.backends.registry import open_backend
 
-    word = precision or ("fixed" if backend == "lava-sim" else "float32")
+    word = _precision(backend, precision)
     if path.is_file():
         return open_backend(read_policy(path), backend, word, seed)
     from snnkart.export.nir_export import export_nir
@@ -175,7 +181,7 @@ def evaluate(
         if not path.is_dir():
             raise UsageError(f"{path}: the torch backend runs a run directory, not a NIR file")
         return run_eval(path, episodes, seed, None, False, None, target, Silent(), track)
-    word = precision or ("fixed" if backend == "lava-sim" else "float32")
+    word = _precision(backend, precision)
     request = DeployRequest(path, backend, word, episodes, seed, track=track, out=target)
     if target is not None:
         return run_eval_exported(path, None, request, Silent())

@@ -13,7 +13,7 @@ from typing import Any
 
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
-from snnkart.contract.records import RecordError, to_data
+from snnkart.contract.records import Reading, RecordError, from_data, to_data
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import Comparison, ann_terms, breakdown, snn_terms, total
 from snnkart.energy.profiles import (
@@ -199,8 +199,9 @@ def _read_sweep(path: Path) -> StudyRecord:
             f"--sweep {path}: not a study.json (schema {schema!r}); pass the "
             "study.json of `snnkart study`"
         )
-    try:
-        return StudyRecord.from_json(json.dumps(data), f"--sweep {path}")
+    source = f"--sweep {path}"
+    try:  # the JSON parsed above, read as the record (not written out and parsed again)
+        return from_data(StudyRecord, data, Reading(STUDY, source, STUDY.version_of(data, source)))
     except RecordError as exc:
         raise ReportError(str(exc)) from None
 

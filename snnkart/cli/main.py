@@ -261,8 +261,9 @@ def eval_(
         from snnkart.eval.request import BACKENDS, DeployRequest
 
         if backend not in BACKENDS:
-            choices = ("torch", "nir-ref", "lava-sim")
-            fail(f"unknown backend {backend!r}{did_you_mean(backend, choices)}; choose torch, "
+            from snnkart.app.api import BACKENDS as EVAL_BACKENDS  # torch too
+
+            fail(f"unknown backend {backend!r}{did_you_mean(backend, EVAL_BACKENDS)}; choose torch, "
                  "nir-ref or lava-sim")  # fmt: skip
         request = guard(
             lambda: DeployRequest(run_dir, backend, precision, episodes, seed, env, track, out)
