@@ -88,7 +88,9 @@ def load_policy(
     ``backend``: ``torch`` (a run directory only), ``nir-ref`` (numpy; ``precision`` float32,
     float64 or fixed, default float32) or ``lava-sim`` (Lava's simulated Loihi; float or fixed,
     default fixed). A run directory on a spiking backend is exported to NIR first, as
-    ``snnkart eval --backend`` does. ``checkpoint``: a run's other checkpoint file."""
+    ``snnkart eval --backend`` does. ``checkpoint`` (a run directory): ``"latest"`` (the
+    default), ``"best"`` (the best periodic evaluation's, ``eval.every_steps``), an env step
+    with a saved checkpoint, or a checkpoint file."""
     path = Path(path)
     if backend not in BACKENDS:
         raise UsageError(
@@ -164,13 +166,15 @@ def evaluate(
     precision: str | None = None,
     track: str | None = None,
     out: str | Path | None = None,
+    checkpoint: str | Path | None = None,
 ) -> EvalRecord | DeployRecord:
     """Score a policy on seeded episodes, as ``snnkart eval`` does: an :class:`EvalRecord` for
     the torch policy of a run directory, a :class:`DeployRecord` on a spiking backend (a run
     directory exported on the fly, or a ``.nir`` file; every env step checked against the
     numpy reference). Both carry ``.summary`` (success rate, returns, lap time, crashes).
     ``out``: where the record is written (default: ``eval.json`` in the run directory for
-    torch, nowhere for a spiking backend)."""
+    torch, nowhere for a spiking backend). ``checkpoint``: which of a run's checkpoints, as
+    :func:`load_policy` takes it."""
     from snnkart.app.evaluate import run_eval, run_eval_exported
     from snnkart.eval.request import DeployRequest
 
@@ -180,13 +184,13 @@ def evaluate(
     if backend == "torch":
         if not path.is_dir():
             raise UsageError(f"{path}: the torch backend runs a run directory, not a NIR file")
-        return run_eval(path, episodes, seed, None, False, None, target, Silent(), track)
+        return run_eval(path, episodes, seed, checkpoint, False, None, target, Silent(), track)
     word = _precision(backend, precision)
     request = DeployRequest(path, backend, word, episodes, seed, track=track, out=target)
     if target is not None:
-        return run_eval_exported(path, None, request, Silent())
+        return run_eval_exported(path, checkpoint, request, Silent())
     with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
-        return run_eval_exported(path, None, replace(request, out=Path(tmp)), Silent())
+        return run_eval_exported(path, checkpoint, replace(request, out=Path(tmp)), Silent())
 
 
 __all__ = ["BACKENDS", "Predictor", "evaluate", "load_policy", "train"]

@@ -29,14 +29,16 @@ def run_eval(
     run_dir: Path,
     episodes: int,
     seed: int,
-    checkpoint: Path | None,
+    checkpoint: str | Path | None,
     render: bool,
     video: Path | None,
     out: Path | None,
     reporter: Reporter,
     track: str | None = None,
 ) -> EvalRecord:
-    """Evaluate a run's torch policy; write and return the eval record."""
+    """Evaluate a run's torch policy; write and return the eval record. ``checkpoint``:
+    ``latest`` (None), ``best``, an env step or a file
+    (:func:`snnkart.rl.run_dir.checkpoint_path`)."""
     from snnkart.eval.episodes import EvalSummary
     from snnkart.eval.video import check_video_path
     from snnkart.rl.trained import TorchPredictor, load_run
@@ -145,7 +147,7 @@ def _describe(summary: Any) -> str:
 
 
 def run_eval_exported(
-    target: Path, checkpoint: Path | None, request: DeployRequest, reporter: Reporter
+    target: Path, checkpoint: str | Path | None, request: DeployRequest, reporter: Reporter
 ) -> DeployRecord:
     """Evaluate on a spiking backend: ``target`` is a NIR file, or a run directory exported to a
     temporary NIR file first; results go to the request's ``out`` or

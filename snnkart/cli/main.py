@@ -229,7 +229,10 @@ def eval_(
     run_dir: Annotated[Path, typer.Argument(help="a training run directory")],
     episodes: Annotated[int, typer.Option(help="number of seeded episodes")] = 20,
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
-    checkpoint: Annotated[Path | None, typer.Option(help="default: the run's latest")] = None,
+    checkpoint: Annotated[
+        str | None,
+        typer.Option(help="latest (default), best (needs eval.every_steps), an env step or a file"),
+    ] = None,
     render: Annotated[bool, typer.Option(help="show the episodes in a window")] = False,
     video: Annotated[Path | None, typer.Option(help="write the episodes to a GIF or MP4")] = None,
     out: Annotated[

@@ -161,6 +161,17 @@ class StopConfig(_Section):
     seed: int = Field(90_000, description="the checks' episodes use seeds seed, seed+1, ...")
 
 
+class EvalConfig(_Section):
+    """Periodic evaluation during training (off unless ``every_steps`` > 0): every
+    ``every_steps`` env steps the deterministic policy drives ``episodes`` seeded episodes
+    (as the ``stop`` checks do: nothing is drawn from training's generators) and the run keeps
+    the best policy so far in ``best.pt``: the highest success rate, ties by mean return."""
+
+    every_steps: int = Field(0, ge=0, description="env steps between evaluations (0: none)")
+    episodes: int = Field(10, ge=1, description="evaluation episodes per evaluation")
+    seed: int = Field(80_000, description="the episodes use seeds seed, seed+1, ...")
+
+
 class RunConfig(_Section):
     checkpoint_every: int = Field(10, ge=1, description="iterations between checkpoints")
     trajectories: bool = Field(True, description="record kart positions for replay")
@@ -237,6 +248,7 @@ class TrainConfig(BaseModel):
     snn: SNNConfig = SNNConfig()
     run: RunConfig = RunConfig()
     stop: StopConfig = StopConfig()
+    eval: EvalConfig = EvalConfig()
 
     @model_validator(mode="before")
     @classmethod

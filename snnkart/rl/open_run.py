@@ -20,7 +20,7 @@ from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.policies import ActorCritic, policy_for
 from snnkart.rl.rollout import Progress
-from snnkart.rl.run_dir import checkpoint_track, trained_config
+from snnkart.rl.run_dir import checkpoint_path, checkpoint_track, trained_config
 
 
 @dataclass(frozen=True)
@@ -69,11 +69,12 @@ class OpenedRun:
 
 
 def open_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> OpenedRun:
-    """Open ``run_dir`` at ``checkpoint`` (default: its latest, ``checkpoint.pt``); raise
+    """Open ``run_dir`` at ``checkpoint`` (default: its latest, ``checkpoint.pt``; ``best``,
+    ``latest``, an env step or a file: :func:`~snnkart.rl.run_dir.checkpoint_path`); raise
     :class:`CheckpointError` if the checkpoint does not fit the env its config describes."""
     run_dir = Path(run_dir)
     cfg = read_run_config(run_dir)
-    ckpt = Path(checkpoint) if checkpoint is not None else run_dir / "checkpoint.pt"
+    ckpt = checkpoint_path(run_dir, checkpoint)
     state, meta = load_checkpoint(ckpt)
     try:
         track = checkpoint_track(meta, cfg, ckpt)

@@ -32,10 +32,11 @@ from snnkart.rl.buffer import Batch, RolloutBuffer, compute_gae
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
+from snnkart.rl.periodic_eval import PeriodicEval
 from snnkart.rl.policies import policy_for
 from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
-from snnkart.rl.run_dir import RunDir
+from snnkart.rl.run_dir import RunDir, resolved_env_config
 from snnkart.rl.stopping import check, stopped
 
 __all__ = ["Progress", "RunError", "Trainer", "compute_gae", "normalize_obs", "policy_for"]
@@ -88,11 +89,13 @@ class Trainer:
         else:
             self.track = load_track(cfg.track)
         torch.set_num_threads(cfg.run.torch_threads)
-        self.out.write_config(cfg)
         p = cfg.ppo
         self.rollout = Rollout(cfg, self.track)
         self.envs, self.karts = self.rollout.envs, self.rollout.karts
         self.env0 = self.karts[0]
+        self.cfg = cfg = resolved_env_config(cfg, self.env0)  # config.toml: the whole env
+        self.out.write_config(cfg)
+        self.evals = PeriodicEval(cfg, self.out)
         self.spec = env_spec(self.env0)
         torch.manual_seed(cfg.seed)
         self.policy = policy_for(cfg, self.env0) if opened is None else opened.policy
@@ -135,6 +138,11 @@ class Trainer:
         checkpoint did before latest-only ones existed); a latest-only one stores the
         generator's state instead, so writing it every iteration does not change what the
         run computes."""
+        return self.out.save(*self._checkpoint(history), self.progress.iteration, history)
+
+    def _checkpoint(self, history: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The checkpoint's state dict and metadata (see :meth:`save`); without ``history``
+        nothing is drawn from the run's generators."""
         rng: dict[str, Any] = (
             {"numpy_seed": int(self.rng.integers(2**62))}
             if history
@@ -157,7 +165,7 @@ class Trainer:
             **self.progress.state(),
             "stopped_early": self.stopped_early,
         }
-        return self.out.save(state, meta, self.progress.iteration, history)
+        return state, meta
 
     # -- the loop ------------------------------------------------------------------------------
 
@@ -255,6 +263,8 @@ class Trainer:
         record = self._record(stats, losses, rollout_time, update_time)
         stop = check(self.cfg, self.progress, self.policy, self.obs_rms, self.track, _interrupted)
         record.update(stop)
+        record.update(self.evals(self.progress, self.policy, self.obs_rms, self.track,
+                                 _interrupted, self._checkpoint))  # fmt: skip
         self.out.log(record, self.progress.global_step)
         if self.cfg.run.trajectories:
             self.out.write_trajectories(

@@ -64,6 +64,8 @@ class Progress:
     """How many multiples of ``stop.every`` the early-stop checks have handled."""
     stop_streak: int = 0
     """Early-stop checks in a row at or above ``stop.success``."""
+    eval_mark: int = 0
+    """How many multiples of ``eval.every_steps`` the periodic evaluations have handled."""
 
     def state(self) -> dict[str, int]:
         return dict(self.__dict__)

@@ -2,6 +2,7 @@
 
 run_dir/config.toml            the resolved config (``--resume`` reads it back)
 run_dir/checkpoint.pt (.json)  the latest checkpoint; checkpoints/iter_NNNNNN.pt the history
+run_dir/best.pt (.json)        the best periodic evaluation's policy (``eval.every_steps``)
 run_dir/metrics.jsonl          one JSON record per iteration
 run_dir/tb/                    TensorBoard scalars (``run.tensorboard``)
 run_dir/trajectories/          kart positions per iteration (``run.trajectories``), for replay
@@ -16,11 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.envs.base import KartEnv
 from snnkart.envs.spec import env_spec, spec_hash, trained_env_config
 from snnkart.envs.tracks import Track, embedded_track, load_track
+from snnkart.errors import CheckpointError
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import save_checkpoint
-from snnkart.rl.config import TrainConfig
+from snnkart.rl.config import TrainConfig, read_run_config
 
 
 def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Track:
@@ -46,6 +49,66 @@ def trained_config(meta: dict[str, Any], cfg: TrainConfig, track: Track) -> Trai
         return cfg
     # what the run's config sets stays set (a contradiction is then reported, not hidden)
     return cfg.model_copy(update={"env_config": _merged(trained, cfg.env_config)})
+
+
+def resolved_env_config(cfg: TrainConfig, env: KartEnv) -> TrainConfig:
+    """``cfg`` with its env config written out in full: every parameter at the value ``env``
+    (the env ``cfg`` makes) has, so a run's ``config.toml`` alone says what was trained and
+    makes the same env again. Unset parameters (None: the env's own default, e.g. the track's
+    time limit) stay unset, as TOML has no None and setting them would change the env spec."""
+    data = env.config.model_dump(mode="json", exclude_none=True)
+    return cfg.model_copy(update={"env_config": data})
+
+
+def checkpoint_path(run_dir: str | Path, which: str | Path | None = None) -> Path:
+    """The checkpoint ``which`` names in ``run_dir``: ``latest`` (or None) the latest,
+    ``best`` the best periodic evaluation's, a whole number the one saved at that env step;
+    anything else is a checkpoint file's path."""
+    run_dir = Path(run_dir)
+    word = "latest" if which is None else str(which)
+    if word == "latest":
+        return run_dir / "checkpoint.pt"
+    if word == "best":
+        path = run_dir / "best.pt"
+        if not path.is_file():
+            raise CheckpointError(_no_best(run_dir))
+        return path
+    if word.isdigit():
+        steps = saved_steps(run_dir)
+        if int(word) not in steps:
+            saved = ", ".join(str(s) for s in sorted(steps)) or "none"
+            raise CheckpointError(
+                f"no checkpoint at step {int(word)} in {run_dir}; its checkpoints are at steps "
+                f"{saved} (or pass best or latest)"
+            )
+        return steps[int(word)]
+    return Path(word)
+
+
+def saved_steps(run_dir: Path) -> dict[int, Path]:
+    """A run's checkpoints (its history, then the latest) by the env step they were saved at."""
+    found: dict[int, Path] = {}
+    for path in [*sorted((run_dir / "checkpoints").glob("iter_*.pt")), run_dir / "checkpoint.pt"]:
+        meta = path.with_suffix(".json")
+        if path.is_file() and meta.is_file():
+            try:
+                found.setdefault(int(json.loads(meta.read_text())["global_step"]), path)
+            except (ValueError, KeyError, TypeError):
+                continue  # a .json cut short by a kill: its .pt holds the same step anyway
+    return found
+
+
+def _no_best(run_dir: Path) -> str:
+    every = read_run_config(run_dir).eval.every_steps
+    if every == 0:
+        return (
+            "no best checkpoint: this run was trained without periodic evaluation "
+            "(set eval.every_steps)"
+        )
+    return (
+        f"no best checkpoint in {run_dir} yet: its first periodic evaluation comes at step "
+        f"{every}; pass latest instead"
+    )
 
 
 def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
@@ -79,6 +142,11 @@ class RunDir:
     def latest(self) -> Path:
         return self.path / "checkpoint.pt"
 
+    @property
+    def best(self) -> Path:
+        """The best periodic evaluation's checkpoint (:mod:`snnkart.rl.periodic_eval`)."""
+        return self.path / "best.pt"
+
     def trim_metrics(self, iteration: int) -> int:
         """Drop the records of iterations after ``iteration`` (those a killed run logged
         after its last checkpoint: resuming runs them again). Returns how many were dropped."""
@@ -105,6 +173,11 @@ class RunDir:
         if history:
             save_checkpoint(self.path / "checkpoints" / f"iter_{iteration:06d}.pt", state, meta)
         return self.latest
+
+    def save_best(self, state: dict[str, Any], meta: dict[str, Any]) -> Path:
+        """Write ``best.pt`` (and its .json), replacing the previous best."""
+        save_checkpoint(self.best, state, meta)
+        return self.best
 
     def open_tensorboard(self) -> None:
         if self.tensorboard and self.writer is None:

@@ -47,25 +47,43 @@ def eval_success(
 ) -> float | None:
     """The deterministic policy's success rate over the check's episodes, or None if an
     interrupt came first."""
-    stop = cfg.stop
+    scores = seeded_episodes(
+        cfg, policy, obs_rms, track, cfg.stop.episodes, cfg.stop.seed, interrupted
+    )
+    return None if scores is None else scores[0]
+
+
+def seeded_episodes(
+    cfg: TrainConfig,
+    policy: ActorCritic,
+    obs_rms: RunningMeanStd,
+    track: Track,
+    episodes: int,
+    seed: int,
+    interrupted: Callable[[], bool],
+) -> tuple[float, float] | None:
+    """The deterministic policy's success rate and mean return over ``episodes`` episodes
+    with seeds ``seed``, ``seed + 1``, ... in a fresh env, or None if an interrupt came
+    first. Draws nothing from the training generators (torch's global one is forked)."""
     run = LoadedRun(Path(), cfg, policy, obs_rms, {}, Path(), track)
-    predictor = TorchPredictor(run, seed=stop.seed)
+    predictor = TorchPredictor(run, seed=seed)
     env = cfg.make_env(track=track)
-    finished = 0
+    finished, total = 0, 0.0
     try:
         with torch.no_grad():
-            for k in range(stop.episodes):
-                obs, info = env.reset(seed=stop.seed + k)
+            for k in range(episodes):
+                obs, info = env.reset(seed=seed + k)
                 done = False
                 while not done:
                     if interrupted():
                         return None
-                    obs, _, terminated, truncated, info = env.step(predictor.predict(obs))
+                    obs, reward, terminated, truncated, info = env.step(predictor.predict(obs))
+                    total += float(reward)
                     done = terminated or truncated
                 finished += bool(info["lap_finished"])
     finally:
         env.close()
-    return finished / stop.episodes
+    return finished / episodes, total / episodes
 
 
 def check(
