@@ -143,14 +143,14 @@ def test_eval_takes_best_latest_or_a_step_and_says_what_is_missing(tmp_path: Pat
     # on, but not reached yet
     late = train_tiny(tmp_path / "late", "grid", "ann", total_steps=256,
                       extra_sets=["eval.every_steps=5000"])  # fmt: skip
-    with pytest.raises(CheckpointError, match="no best checkpoint .* yet.*step 5000"):
+    with pytest.raises(CheckpointError, match=r"no best checkpoint .* yet.*step 5000"):
         snnkart.load_policy(late, checkpoint="best")
 
 
 def test_the_eval_keys_are_known_to_the_config() -> None:
     assert load_config(sets=["eval.every_steps=1000"]).eval.every_steps == 1000
     assert load_config().eval.every_steps == 0  # off by default
-    with pytest.raises(ConfigError, match="eval.every_steps"):
+    with pytest.raises(ConfigError, match=r"eval\.every_steps"):
         load_config(sets=["eval.every_step=1000"])
 
 
@@ -178,3 +178,9 @@ def test_config_toml_writes_the_resolved_env_config_and_makes_the_same_env(
     finally:
         resumed.close()
     assert json.loads((run / "checkpoint.json").read_text())["global_step"] == 512
+
+
+def test_best_means_more_laps_first_then_a_higher_return() -> None:
+    laps = {"success_rate": 0.9, "mean_return": 5.0}
+    assert score_key(laps) > score_key({"success_rate": 0.8, "mean_return": 15.0})
+    assert score_key(laps) < score_key({"success_rate": 0.9, "mean_return": 5.5})

@@ -224,15 +224,16 @@ def _write_failure(exc: Exception, run_dir: Path) -> str:
     )
 
 
+CHECKPOINT_HELP = "latest (default), best (needs eval.every_steps), an env step or a file"
+"""Which of a run's checkpoints eval runs (:func:`snnkart.rl.run_dir.checkpoint_path`)."""
+
+
 @app.command(name="eval")
 def eval_(
     run_dir: Annotated[Path, typer.Argument(help="a training run directory")],
     episodes: Annotated[int, typer.Option(help="number of seeded episodes")] = 20,
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
-    checkpoint: Annotated[
-        str | None,
-        typer.Option(help="latest (default), best (needs eval.every_steps), an env step or a file"),
-    ] = None,
+    checkpoint: Annotated[str | None, typer.Option(help=CHECKPOINT_HELP)] = None,
     render: Annotated[bool, typer.Option(help="show the episodes in a window")] = False,
     video: Annotated[Path | None, typer.Option(help="write the episodes to a GIF or MP4")] = None,
     out: Annotated[
