@@ -231,7 +231,12 @@ def eval_(
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
     checkpoint: Annotated[Path | None, typer.Option(help="default: the run's latest")] = None,
     render: Annotated[bool, typer.Option(help="show the episodes in a window")] = False,
-    video: Annotated[Path | None, typer.Option(help="write the episodes to a GIF or MP4")] = None,
+    video: Annotated[
+        Path | None, typer.Option(help="film episodes to a GIF or MP4 (MP4: snnkart[video])")
+    ] = None,
+    video_episodes: Annotated[
+        int, typer.Option(help="--video films the first K episodes; all are scored")
+    ] = 3,
     out: Annotated[
         Path | None, typer.Option(help="JSON results (default RUN_DIR/eval.json)")
     ] = None,
@@ -281,7 +286,16 @@ def eval_(
         fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
     guard(
         lambda: run_eval(
-            run_dir, episodes, seed, checkpoint, render, video, out, ConsoleReporter(), track
+            run_dir,
+            episodes,
+            seed,
+            checkpoint,
+            render,
+            video,
+            out,
+            ConsoleReporter(),
+            track,
+            video_episodes,
         ),
         "no results were written",
     )
