@@ -135,3 +135,30 @@ def test_play_shows_its_keys_in_the_window() -> None:
     from snnkart.envs.render import TEXT
 
     assert np.any(np.all(bottoms[0] == np.asarray(TEXT, dtype=np.uint8), axis=2))
+
+
+def test_eval_scores_all_episodes_and_films_the_first(tmp_path: Path) -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    from snnkart.cli import app
+
+    fixture = Path(__file__).parent / "data" / "policies" / "grid-snn"
+    gif, out = tmp_path / "eval.gif", tmp_path / "eval.json"
+    args = ["eval", str(fixture), "--episodes", "2", "--video", str(gif), "--out", str(out)]
+    result = CliRunner().invoke(app, [*args, "--video-episodes", "1"])
+    assert result.exit_code == 0, result.output
+    episodes = json.loads(out.read_text())["episodes"]
+    assert len(episodes) == 2
+    from PIL import Image
+
+    # one frame per second step of the first episode only, then the banner: the GIF writer
+    # keeps repeated frames as one frame shown BANNER_FRAMES times as long
+    with Image.open(gif) as image:
+        durations = []
+        for k in range(image.n_frames):
+            image.seek(k)
+            durations.append(image.info["duration"])
+    assert len(durations) == episodes[0]["length"] // 2 + 1
+    assert durations[-1] >= (BANNER_FRAMES - 1) * durations[0]  # GIF times are centiseconds
