@@ -224,6 +224,14 @@ def _write_failure(exc: Exception, run_dir: Path) -> str:
     )
 
 
+_VideoOption = Annotated[
+    Path | None, typer.Option(help="film episodes to a GIF or MP4 (MP4: snnkart[video])")
+]
+_VideoEpisodesOption = Annotated[
+    int, typer.Option(help="with --video: film the first K episodes; all are scored")
+]
+
+
 @app.command(name="eval")
 def eval_(
     run_dir: Annotated[Path, typer.Argument(help="a training run directory")],
@@ -231,12 +239,8 @@ def eval_(
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
     checkpoint: Annotated[Path | None, typer.Option(help="default: the run's latest")] = None,
     render: Annotated[bool, typer.Option(help="show the episodes in a window")] = False,
-    video: Annotated[
-        Path | None, typer.Option(help="film episodes to a GIF or MP4 (MP4: snnkart[video])")
-    ] = None,
-    video_episodes: Annotated[
-        int, typer.Option(help="--video films the first K episodes; all are scored")
-    ] = 3,
+    video: _VideoOption = None,
+    video_episodes: _VideoEpisodesOption = 3,
     out: Annotated[
         Path | None, typer.Option(help="JSON results (default RUN_DIR/eval.json)")
     ] = None,
@@ -284,21 +288,9 @@ def eval_(
         fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:
         fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
-    guard(
-        lambda: run_eval(
-            run_dir,
-            episodes,
-            seed,
-            checkpoint,
-            render,
-            video,
-            out,
-            ConsoleReporter(),
-            track,
-            video_episodes,
-        ),
-        "no results were written",
-    )
+    guard(lambda: run_eval(run_dir, episodes, seed, checkpoint, render, video, out,
+                           ConsoleReporter(), track, video_episodes),
+          "no results were written")  # fmt: skip
 
 
 @app.command()
