@@ -225,7 +225,7 @@ def _write_failure(exc: Exception, run_dir: Path) -> str:
 
 
 _VideoOption = Annotated[
-    Path | None, typer.Option(help="film episodes to a GIF or MP4 (MP4: snnkart[video])")
+    Path | None, typer.Option(help="film episodes to a GIF, or an MP4 (needs the video extra)")
 ]
 _VideoEpisodesOption = Annotated[
     int, typer.Option(help="with --video: film the first K episodes; all are scored")
