@@ -98,6 +98,7 @@ def test_mp4_is_written(tmp_path: Path) -> None:
     with video_writer(out, fps=30) as writer:
         for frame in frames.frames[-20:]:
             writer.append_data(frame)
+    assert b"ftyp" in out.read_bytes()[:64]  # an MP4 container, not a GIF named .mp4
     read = imageio.mimread(out, format="FFMPEG", memtest=False)
     assert len(read) == 20 and read[0].shape == frames.frames[-1].shape
 
