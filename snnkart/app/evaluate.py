@@ -35,16 +35,20 @@ def run_eval(
     out: Path | None,
     reporter: Reporter,
     track: str | None = None,
+    video_episodes: int = 3,
 ) -> EvalRecord:
     """Evaluate a run's torch policy; write and return the eval record. ``checkpoint``:
     ``latest`` (None), ``best``, an env step or a file
-    (:func:`snnkart.rl.run_dir.checkpoint_path`)."""
+    (:func:`snnkart.rl.run_dir.checkpoint_path`). With ``video``, the first ``video_episodes``
+    episodes are filmed (all are scored)."""
     from snnkart.eval.episodes import EvalSummary
     from snnkart.eval.video import check_video_path
     from snnkart.rl.trained import TorchPredictor, load_run
 
     if video is not None:
         check_video_path(video)
+        if video_episodes < 1:
+            raise UsageError(f"--video-episodes must be >= 1, got {video_episodes}")
         if render:
             raise UsageError("choose either --render (a window) or --video (a file), not both")
     run = load_run(run_dir, checkpoint)
@@ -54,7 +58,8 @@ def run_eval(
     predictor: Any = TorchPredictor(run, seed=seed)
     if mode is not None and run.config.policy == "snn":
         predictor = _ShowingActivity(predictor, env.unwrapped)
-    results = _episodes(env, predictor, episodes, seed, video, reporter)
+    filmed = min(episodes, video_episodes) if video is not None else 0
+    results = _episodes(env, predictor, range(seed, seed + episodes), video, filmed, reporter)
     summary = EvalSummary.of(results)
     path = out or run_dir / "eval.json"
     record = EvalRecord(
@@ -84,28 +89,31 @@ def run_eval(
 
 
 def _episodes(
-    env: Any, predictor: Any, episodes: int, seed: int, video: Path | None, reporter: Reporter
+    env: Any, predictor: Any, seeds: range, video: Path | None, filmed: int, reporter: Reporter
 ) -> list[Any]:
-    """Run the seeded episodes (every second frame to ``video`` if given); the env is closed
-    after, also on Ctrl-C, which is taken between env steps."""
+    """Run the seeded episodes, the first ``filmed`` of them to ``video`` (every second step,
+    then the final step with its outcome); the env is closed after, also on Ctrl-C, which is
+    taken between env steps."""
     from snnkart.eval.episodes import run_episodes
-    from snnkart.eval.video import video_writer
+    from snnkart.eval.video import Film, video_writer
 
     with contextlib.ExitStack() as stack:
         stack.callback(env.close)
         stack.enter_context(faults.caught())
-        task = stack.enter_context(reporter.progress("evaluating", episodes))
-        on_step = None
+        label = f"evaluating, filming {filmed} to {video.name}" if video else "evaluating"
+        steps = "video frames" if video else None
+        task = stack.enter_context(reporter.progress(label, len(seeds), steps))
+        on_step, on_episode = None, lambda r: task.advance()
         if video is not None:
             writer = stack.enter_context(video_writer(video, fps=RENDER_FPS / 2))
+            film = Film(env.unwrapped, writer, len(seeds), seeds.start, filmed, on_frame=task.step)
+            on_step = film.on_step
 
-            def on_step(e: Any) -> None:
-                if e.unwrapped.episode_steps % 2 == 0:
-                    writer.append_data(e.render())
+            def on_episode(result: Any) -> None:
+                film.on_episode(result)
+                task.advance()
 
-        return run_episodes(
-            env, predictor, episodes, seed, on_step=on_step, on_episode=lambda r: task.advance()
-        )
+        return run_episodes(env, predictor, len(seeds), seeds.start, on_step, on_episode)
 
 
 class _ShowingActivity:

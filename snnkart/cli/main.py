@@ -226,6 +226,12 @@ def _write_failure(exc: Exception, run_dir: Path) -> str:
 
 CHECKPOINT_HELP = "latest (default), best (needs eval.every_steps), an env step or a file"
 """Which of a run's checkpoints eval runs (:func:`snnkart.rl.run_dir.checkpoint_path`)."""
+_VideoOption = Annotated[
+    Path | None, typer.Option(help="film episodes to a GIF, or an MP4 (needs the video extra)")
+]
+_VideoEpisodesOption = Annotated[
+    int, typer.Option(help="with --video: film the first K episodes; all are scored")
+]
 
 
 @app.command(name="eval")
@@ -235,7 +241,8 @@ def eval_(
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
     checkpoint: Annotated[str | None, typer.Option(help=CHECKPOINT_HELP)] = None,
     render: Annotated[bool, typer.Option(help="show the episodes in a window")] = False,
-    video: Annotated[Path | None, typer.Option(help="write the episodes to a GIF or MP4")] = None,
+    video: _VideoOption = None,
+    video_episodes: _VideoEpisodesOption = 3,
     out: Annotated[
         Path | None, typer.Option(help="JSON results (default RUN_DIR/eval.json)")
     ] = None,
@@ -283,12 +290,9 @@ def eval_(
         fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:
         fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
-    guard(
-        lambda: run_eval(
-            run_dir, episodes, seed, checkpoint, render, video, out, ConsoleReporter(), track
-        ),
-        "no results were written",
-    )
+    guard(lambda: run_eval(run_dir, episodes, seed, checkpoint, render, video, out,
+                           ConsoleReporter(), track, video_episodes),
+          "no results were written")  # fmt: skip
 
 
 @app.command()

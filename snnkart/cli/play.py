@@ -3,8 +3,9 @@
 The keys are polled every step, so holding a key keeps acting. W/A/S/D drive (grid: up, left,
 down, right; gazebo: accelerate, turn left, brake, turn right; steer: throttle, steer left,
 brake, steer right), Space also brakes in gazebo and steer, R restarts the episode and Esc or
-closing the window quits. When an episode ends, one line with its outcome and return is
-printed and a new episode starts.
+closing the window quits; the keys are also shown at the bottom of the window. When an episode
+ends, one line with its outcome and return is printed and a new episode starts; standing still
+is printed once per spell, not again for each episode that ends because no key was pressed.
 
 pygame is imported only when the window is polled; the key-to-action mappings are plain
 functions of :class:`Keys`, so they can be used and tested without pygame.
@@ -113,16 +114,19 @@ def run_play(
     """
     from snnkart.envs import make, resolve_env_name
     from snnkart.envs.base import KartEnv
+    from snnkart.envs.overlay import draw_key_help
 
     name = resolve_env_name(env_name)
     to_action = KEY_ACTIONS[name]
     env = make(name, track=track, render_mode="human")
-    episodes = 0
+    kart = env.unwrapped
+    assert isinstance(kart, KartEnv)
+    help_line = f"{KEY_HELP[name]}; R restart, Esc quit"
+    kart.overlays.append(lambda surface: draw_key_help(surface, help_line))
+    episodes, idle = 0, False  # idle: stood still, no key since; say it once per spell
     try:
         env.reset(seed=seed)  # opens the window, so pygame's events and keys work from here
-        kart = env.unwrapped
-        assert isinstance(kart, KartEnv)
-        print(f"{name} on {kart.track.name}: {KEY_HELP[name]}; R restart, Esc quit")
+        print(f"{name} on {kart.track.name}: {help_line}")
         step = 0
         while max_steps is None or step < max_steps:
             if on_step is not None:
@@ -132,11 +136,14 @@ def run_play(
                 return episodes
             if command == "restart":
                 env.reset()
+            idle = idle and not any(keys) and command == "drive"
             _, _, terminated, truncated, info = env.step(to_action(keys))
             step += 1
             if terminated or truncated:
                 episodes += 1
-                print(f"{episode_outcome(info, truncated)}, return {kart.episode_return:+.2f}")
+                if not (idle and info["stood_still"]):
+                    print(f"{episode_outcome(info, truncated)}, return {kart.episode_return:+.2f}")
+                idle = bool(info["stood_still"])
                 env.reset()
     finally:
         env.close()

@@ -107,6 +107,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
         self._renderer: Any = None
         self.activity: list[tuple[str, float]] = []  # (layer, firing rate) for the side panel
+        self.overlays: list[Any] = []  # drawn last on each frame, f(surface) (play's key help)
 
     def _check_modes(self, action_mode: str, render_mode: str | None) -> None:
         if action_mode not in ACTION_MODES:

@@ -46,6 +46,8 @@ class DrawnEnv(Protocol):
     @property
     def activity(self) -> list[tuple[str, float]]: ...
     @property
+    def overlays(self) -> list[Any]: ...
+    @property
     def position(self) -> tuple[float, float]: ...
     @property
     def heading(self) -> float: ...
@@ -152,6 +154,8 @@ class Renderer:
         self._draw_lidar(frame)
         self._draw_kart(frame)
         self._draw_telemetry(frame)
+        for overlay in self.env.overlays:  # callables drawing on the frame, e.g. key help
+            overlay(frame)
         return self._present(frame)
 
     def _present(self, frame: pygame.Surface) -> np.ndarray | None:
