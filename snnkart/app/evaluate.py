@@ -42,15 +42,9 @@ def run_eval(
     (:func:`snnkart.rl.run_dir.checkpoint_path`). With ``video``, the first ``video_episodes``
     episodes are filmed (all are scored)."""
     from snnkart.eval.episodes import EvalSummary
-    from snnkart.eval.video import check_video_path
     from snnkart.rl.trained import TorchPredictor, load_run
 
-    if video is not None:
-        check_video_path(video)
-        if video_episodes < 1:
-            raise UsageError(f"--video-episodes must be >= 1, got {video_episodes}")
-        if render:
-            raise UsageError("choose either --render (a window) or --video (a file), not both")
+    _check_video(video, video_episodes, render)
     run = load_run(run_dir, checkpoint)
     choice = _track_choice(run, track)
     mode = "human" if render else ("rgb_array" if video is not None else None)
@@ -86,6 +80,17 @@ def run_eval(
         )
     reporter.message(f"results written to {path}")
     return record
+
+
+def _check_video(video: Path | None, video_episodes: int, render: bool) -> None:
+    from snnkart.eval.video import check_video_path
+
+    if video is not None:
+        check_video_path(video)
+        if video_episodes < 1:
+            raise UsageError(f"--video-episodes must be >= 1, got {video_episodes}")
+        if render:
+            raise UsageError("choose either --render (a window) or --video (a file), not both")
 
 
 def _episodes(
