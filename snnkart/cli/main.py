@@ -306,7 +306,12 @@ def replay(
     every: Annotated[int, typer.Option(help="show every n-th time step")] = 2,
 ) -> None:
     """Replay the episodes recorded during training, several karts at once; or, with
-    --compare, the trained policies of up to four runs side by side (e.g. ANN vs SNN)."""
+    --compare, the trained policies of up to four runs side by side (e.g. ANN vs SNN).
+
+    Each episode is replayed whole, from its reset pose to its end, and belongs to the
+    iteration it ended in, so the count matches training's. Episodes still running when
+    training stopped (or was resumed), and any begun before the first recorded rollout,
+    are not shown; the output says how many."""
     from snnkart.app.replay import run_compare, run_replay
 
     if compare:
