@@ -104,3 +104,13 @@ def test_compare_ends_each_kart_on_its_terminal_step(run: Path) -> None:
     (at_end,) = [f for f in frames if f.lines[0] == ("time", f"{end * DT:.2f} s")]
     assert np.allclose(at_end.positions[1], short.positions[-1])
     assert at_end.lines[4][1] == "crashed"  # its outcome, from its terminal step on
+
+
+def test_replay_help_says_what_is_left_out() -> None:
+    from typer.testing import CliRunner
+
+    from snnkart.cli import app
+
+    result = CliRunner().invoke(app, ["replay", "--help"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0
+    assert "episodes unfinished when training stopped or resumed are not shown" in result.output

@@ -291,7 +291,13 @@ def eval_(
 def replay(
     run_dirs: Annotated[list[Path], typer.Argument(help="a training run (--compare: 1 to 4)")],
     mode: Annotated[
-        str, typer.Option(help="batch: iteration by iteration; all: everything at once")
+        str,
+        typer.Option(
+            help="batch: iteration by iteration; all: everything at once. Each episode is "
+            "shown whole, from its reset pose, in the iteration it ended in (as training "
+            "counts it); episodes unfinished when training stopped or resumed are not "
+            "shown, and the output says how many",
+        ),
     ] = "batch",
     compare: Annotated[
         bool, typer.Option(help="race the runs' trained policies on one track, one colour each")
@@ -306,12 +312,7 @@ def replay(
     every: Annotated[int, typer.Option(help="show every n-th time step")] = 2,
 ) -> None:
     """Replay the episodes recorded during training, several karts at once; or, with
-    --compare, the trained policies of up to four runs side by side (e.g. ANN vs SNN).
-
-    Each episode is replayed whole, from its reset pose to its end, and belongs to the
-    iteration it ended in, so the count matches training's. Episodes still running when
-    training stopped (or was resumed), and any begun before the first recorded rollout,
-    are not shown; the output says how many."""
+    --compare, the trained policies of up to four runs side by side (e.g. ANN vs SNN)."""
     from snnkart.app.replay import run_compare, run_replay
 
     if compare:

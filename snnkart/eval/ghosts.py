@@ -30,7 +30,7 @@ from snnkart.errors import ReplayError
 REPLAY_MODES = ("batch", "all")
 RACE_COLOURS = [(66, 135, 245), (230, 70, 60), (60, 180, 75), (245, 160, 40)]
 """Blue, red, green, orange: distinct on the track's dark background."""
-GHOST_ALPHA = 80
+GHOST_ALPHA = 110
 """Opacity (0-255) of a replayed kart: a pile of karts at the spawn shows how many it holds."""
 Colour = tuple[int, int, int]
 Line = tuple[str, str] | tuple[str, str, Colour]  # (label, value[, colour])
