@@ -5,14 +5,22 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from snnkart.app.reporter import Reporter
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.errors import UsageError
 
+if TYPE_CHECKING:
+    from snnkart.eval.ghosts import GhostFrame
 
-def run_replay(run_dir: Path, mode: str, out: Path | None, every: int, reporter: Reporter) -> None:
+
+def run_replay(
+    run_dir: Path, mode: str, out: Path | None, every: int, reporter: Reporter
+) -> dict[str, int]:
+    """Replay the whole episodes recorded during training (see :mod:`snnkart.eval.ghosts`):
+    in a window, or to the GIF/MP4 ``out``. Returns how many episodes were shown (as many as
+    training counted, when every rollout was recorded) and how many were left out."""
     from snnkart.eval.ghosts import frames, load_ghosts
     from snnkart.eval.video import check_video_path
     from snnkart.rl.checkpoint import load_checkpoint
@@ -24,32 +32,42 @@ def run_replay(run_dir: Path, mode: str, out: Path | None, every: int, reporter:
     if out is not None:
         check_video_path(out)
     cfg = read_run_config(run_dir)
-    ghosts = load_ghosts(run_dir)
+    recorded = load_ghosts(run_dir)
+    shown = frames(recorded.ghosts, mode, every)  # checks the mode before a window opens
     latest = run_dir / "checkpoint.pt"  # carries the track, which may have moved since
     track = checkpoint_track(load_checkpoint(latest)[1], cfg, latest) if latest.is_file() else None
     env = cfg.make_env(track=track).unwrapped
-    _show(env, frames(ghosts, mode, every), out, every)
+    reporter.message(f"replaying {len(recorded.ghosts)} episodes, as training counted them")
+    if recorded.left_out():
+        reporter.message(recorded.left_out())
+    _show(env, shown, out, every)
     if out is not None:
-        reporter.message(f"replay of {len(ghosts)} episodes written to {out}")
+        reporter.message(f"replay written to {out}")
+    return {"episodes": len(recorded.ghosts), "unfinished": recorded.unfinished,
+            "begun_before": recorded.begun_before}  # fmt: skip
 
 
-def _show(env: Any, shown: Iterator[tuple[Any, Any, Any]], out: Path | None, every: int) -> None:
-    """Draw (positions, colours, panel lines) frames of many karts on ``env``'s track: in a
-    window (until closed), or to the GIF/MP4 ``out``. Closes the env."""
+def _show(env: Any, shown: Iterator[GhostFrame], out: Path | None, every: int) -> None:
+    """Draw frames of many karts on ``env``'s track: in a window (until closed), or to the
+    GIF/MP4 ``out``. Closes the env."""
     from snnkart.envs.render import Renderer
     from snnkart.eval.video import video_writer
 
     renderer = Renderer(env, human=out is None)
+
+    def draw(f: GhostFrame) -> Any:
+        return renderer.draw_ghosts(f.positions, f.colours, f.lines, f.alpha, f.bar)
+
     try:
         if out is None:
-            for positions, colours, lines in shown:
-                renderer.draw_ghosts(positions, colours, lines)
+            for frame in shown:
+                draw(frame)
                 if renderer.quit_requested():
                     break
         else:
             with video_writer(out, fps=RENDER_FPS / every) as writer:
-                for positions, colours, lines in shown:
-                    writer.append_data(renderer.draw_ghosts(positions, colours, lines))
+                for frame in shown:
+                    writer.append_data(draw(frame))
     finally:
         renderer.close()
         env.close()
@@ -82,6 +100,12 @@ def _recorder(path: list[tuple[float, float]]) -> Any:
     return lambda env: path.append(env.unwrapped.position)
 
 
+def _reset_pose(env: Any, seed: int) -> tuple[float, float]:
+    """Where ``env``'s episode of seed ``seed`` starts (reset is deterministic per seed)."""
+    env.reset(seed=seed)
+    return env.unwrapped.position  # type: ignore[no-any-return]
+
+
 def _race(run_dirs: list[Path], seed: int, track: str | None) -> tuple[list[Any], Any]:
     """Each run's deterministic episode (seed ``seed``) on the shared track, as racers; and an
     env of the first run on that track to draw them on."""
@@ -97,8 +121,8 @@ def _race(run_dirs: list[Path], seed: int, track: str | None) -> tuple[list[Any]
     racers = []
     for run_dir, run in zip(run_dirs, runs, strict=True):
         env = run.config.make_env(track=shared)
-        path: list[tuple[float, float]] = []
         try:
+            path = [_reset_pose(env, seed)]  # positions[t]: the pose after t steps
             (result,) = run_episodes(env, TorchPredictor(run, seed=seed), 1, seed,
                                      on_step=_recorder(path))  # fmt: skip
         finally:

@@ -299,7 +299,13 @@ def eval_(
 def replay(
     run_dirs: Annotated[list[Path], typer.Argument(help="a training run (--compare: 1 to 4)")],
     mode: Annotated[
-        str, typer.Option(help="batch: iteration by iteration; all: everything at once")
+        str,
+        typer.Option(
+            help="batch: iteration by iteration; all: everything at once. Each episode is "
+            "shown whole, from its reset pose, in the iteration it ended in (as training "
+            "counts it); episodes unfinished when training stopped or resumed are not "
+            "shown, and the output says how many",
+        ),
     ] = "batch",
     compare: Annotated[
         bool, typer.Option(help="race the runs' trained policies on one track, one colour each")

@@ -18,7 +18,7 @@ import math
 import os
 import sys
 from collections.abc import Sequence
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -101,6 +101,16 @@ POSITIVE: Colour = (110, 212, 124)
 NEGATIVE: Colour = (238, 104, 92)
 
 
+class ColourBar(NamedTuple):
+    """A legend for colours on a scale (replay: early to late iterations): a title, the colours
+    from one end to the other, and the labels of both ends."""
+
+    title: str
+    colours: Sequence[Colour]
+    low: str
+    high: str
+
+
 def _has_display() -> bool:
     """Whether a window can be opened (only Linux and BSD may lack a display server)."""
     if not sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
@@ -142,6 +152,7 @@ class Renderer:
         self._kart_radius = KART_RADIUS_PX * s
         self._finish_squares = self._checkered(env.track.finish.a, env.track.finish.b)
         self._panel_top = 0  # set by _draw_static, below the panel title
+        self._sprites: dict[tuple[Colour, int], pygame.Surface] = {}  # see _ghost_sprite
         self._static = self._draw_static()
 
     # -- public API ----------------------------------------------------------------------------
@@ -172,10 +183,13 @@ class Renderer:
         positions: np.ndarray,
         colours: list[Colour],
         lines: Sequence[tuple[Any, ...]],
+        alpha: int = 255,
+        bar: ColourBar | None = None,
     ) -> np.ndarray | None:
         """Draw the track with many karts (replay): ``positions`` ``[k, 2]`` px, one colour each,
-        and ``lines`` of (label, value[, colour]) in the side panel (a legend names colours
-        in their own colour). Returns the frame as :meth:`draw`."""
+        at opacity ``alpha`` (0-255; overlapping karts add up, so a pile shows its size), and
+        ``lines`` of (label, value[, colour]) in the side panel (a legend names colours in their
+        own colour), then ``bar`` if given. Returns the frame as :meth:`draw`."""
         frame = self._frame
         frame.blit(self._static, (0, 0))
         width = max(1, round(2 * self.scale))
@@ -184,11 +198,46 @@ class Renderer:
         for colour, square in self._finish_squares:
             pygame.draw.polygon(frame, colour, square)
         for (x, y), colour in zip(positions, colours, strict=True):
-            pygame.draw.circle(frame, colour, self._screen((x, y)), self._kart_radius, width)
+            sprite = self._ghost_sprite(colour, alpha)
+            cx, cy = self._screen((x, y))
+            frame.blit(sprite, (cx - sprite.get_width() / 2, cy - sprite.get_height() / 2))
         y = self._panel_top
         for line in lines:  # (label, value) or (label, value, colour)
             y = self._row(frame, y, line[0], line[1], line[2] if len(line) > 2 else TEXT)
+        if bar is not None:
+            self._draw_colour_bar(frame, y, bar)
         return self._present(frame)
+
+    def _ghost_sprite(self, colour: Colour, alpha: int) -> pygame.Surface:
+        """A replayed kart: a ring at opacity ``alpha`` filled at half that (cached)."""
+        key = (colour, alpha)
+        if key not in self._sprites:
+            r = self._kart_radius
+            side = math.ceil(2 * r) + 2
+            sprite = pygame.Surface((side, side), pygame.SRCALPHA)
+            centre = (side / 2, side / 2)
+            pygame.draw.circle(sprite, (*colour, alpha // 2), centre, r)
+            pygame.draw.circle(sprite, (*colour, alpha), centre, r, max(1, round(2 * self.scale)))
+            self._sprites[key] = sprite
+        return self._sprites[key]
+
+    def _draw_colour_bar(self, frame: pygame.Surface, y: int, bar: ColourBar) -> int:
+        """Draw ``bar`` across the panel below ``y``: title, gradient, end labels; return the
+        top of what follows."""
+        y = self._rule(frame, y)
+        left, right = self.track_width + self._pad, self.size[0] - self._pad
+        title = self._small_font.render(bar.title, True, TEXT_DIM)
+        frame.blit(title, (left, y))
+        y += round(title.get_height() * 1.4)
+        height, n = max(6, self._line_height // 2), len(bar.colours)
+        for k, colour in enumerate(bar.colours):
+            x0, x1 = left + (right - left) * k // n, left + (right - left) * (k + 1) // n
+            pygame.draw.rect(frame, colour, (x0, y, x1 - x0, height))
+        y += height + round(4 * self.scale)
+        low, high = (self._small_font.render(t, True, TEXT) for t in (bar.low, bar.high))
+        frame.blit(low, (left, y))
+        frame.blit(high, (right - high.get_width(), y))
+        return y + low.get_height()
 
     def quit_requested(self) -> bool:
         """Whether the user closed the window or pressed Esc since the last call."""

@@ -268,9 +268,8 @@ class Trainer:
         self.out.log(record, self.progress.global_step)
         if self.cfg.run.trajectories:
             self.out.write_trajectories(
-                self.progress.iteration, self.progress.global_step,
-                self.rollout.positions, self.rollout.ends,
-            )  # fmt: skip
+                self.progress.iteration, self.progress.global_step, self.rollout.trajectory()
+            )
         if (
             self.progress.iteration % self.cfg.run.checkpoint_every == 0
             or self.progress.iteration == self.num_iterations

@@ -97,13 +97,21 @@ class Rollout:
         for kart in self.karts:
             kart.start_spread = cfg.ppo.start_spread
         steps, envs = cfg.ppo.rollout_steps, cfg.ppo.num_envs
-        self.positions = np.zeros((steps, envs, 2), dtype=np.float32)  # trajectories
+        # trajectories: poses after each step (an episode's terminal pose where it ended), the
+        # reset pose of the episode begun after a step that ended one, every env's pose before
+        # the rollout's first step, and whether that pose began an episode (a fresh reset)
+        self.positions = np.zeros((steps, envs, 2), dtype=np.float32)
         self.ends = np.zeros((steps, envs), dtype=bool)
+        self.reset_positions = np.zeros((steps, envs, 2), dtype=np.float32)
+        self.first_positions = np.zeros((envs, 2), dtype=np.float32)
+        self.fresh = np.zeros(envs, dtype=bool)
+        self.episode_start = np.zeros(envs, dtype=bool)
 
     def reset(self, seed: int) -> None:
         self.next_raw, _ = self.envs.reset(seed=seed)
         self.ep_return = np.zeros(self.ppo.num_envs)
         self.ep_length = np.zeros(self.ppo.num_envs, dtype=np.int64)
+        self.fresh[:] = True
 
     def collect(
         self,
@@ -118,6 +126,9 @@ class Rollout:
         p, E = self.ppo, self.ppo.num_envs
         self.positions[:] = 0.0
         self.ends[:] = False
+        self.reset_positions[:] = 0.0
+        self.first_positions[:] = [kart.position for kart in self.karts]
+        self.episode_start[:], self.fresh[:] = self.fresh, False
         for step in range(p.rollout_steps):
             progress.global_step += E
             if p.norm_obs:
@@ -162,6 +173,8 @@ class Rollout:
                 for i, kart in enumerate(self.karts)
             ]
             self.ends[step] = done
+            for i in np.flatnonzero(done):  # autoreset in the same step: already the next start
+                self.reset_positions[step, i] = self.karts[i].position
         self.ep_return += reward
         self.ep_length += 1
         if truncated.any():
@@ -170,6 +183,19 @@ class Rollout:
         buf.ends[step] = torch.from_numpy(done.astype(np.float32))
         for i in np.flatnonzero(done):
             self._episode_end(info, i, progress, stats)
+
+    def trajectory(self) -> dict[str, np.ndarray]:
+        """The last rollout's kart poses (px), as ``trajectories/iter_NNNNNN.npz`` stores them:
+        ``positions`` and ``episode_end`` ``[steps, envs]``, ``reset_positions`` (where an
+        episode ended, the next one's reset pose), ``first_positions`` (before step 0) and
+        ``episode_start`` (that pose is a reset pose: the first rollout after a (re)start)."""
+        return {
+            "positions": self.positions,
+            "episode_end": self.ends,
+            "reset_positions": self.reset_positions,
+            "first_positions": self.first_positions,
+            "episode_start": self.episode_start,
+        }
 
     def final_values(
         self,

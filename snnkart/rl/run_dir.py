@@ -195,13 +195,12 @@ class RunDir:
                     self.writer.add_scalar(key, value, global_step)
 
     def write_trajectories(
-        self, iteration: int, global_step: int, positions: np.ndarray, ends: np.ndarray
+        self, iteration: int, global_step: int, arrays: dict[str, np.ndarray]
     ) -> None:
+        """Write one rollout's kart poses (:meth:`snnkart.rl.rollout.Rollout.trajectory`) for ``replay``."""
         path = self.path / "trajectories" / f"iter_{iteration:06d}.npz"
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(
-                f, positions=positions, episode_end=ends, global_step=np.int64(global_step)
-            )
+            np.savez_compressed(f, **arrays, global_step=np.int64(global_step))
 
     def flush(self) -> None:
         if self.writer is not None:
