@@ -13,6 +13,7 @@ import typer
 
 from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.guard import fail, guard, interrupted_exit
+from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
 from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
@@ -135,11 +136,7 @@ def demo(
     print_headline(finished["report"], headline(finished["report"]))
 
 
-@app.command(
-    epilog="Examples: snnkart train --env grid --policy snn --out runs/grid-snn  |  "
-    "snnkart train --resume --out runs/grid-snn  |  "
-    "snnkart train --set ppo.learning_rate=1e-3 --set snn.num_steps=4"
-)
+@app.command()
 def train(
     env: Annotated[
         str | None,
@@ -384,6 +381,7 @@ app.command()(study)
 app.add_typer(plot_app, name="plot")
 app.add_typer(nir_app, name="nir")
 app.add_typer(ros_app, name="ros")
+finish_help(app)  # after every command: examples and tidy help for each
 
 
 def main() -> None:
