@@ -360,6 +360,19 @@ def test_report_files_and_schema(report: Path) -> None:
 
 
 @pytest.mark.timeout(600)
+def test_nir_info_and_the_report_count_the_same_parameters(report: Path) -> None:
+    data = json.loads((report / "report.json").read_text())
+    graph = Path(data["deploy"]["file"]).parent / "policy.nir"
+    info = json.loads(_cli("nir", "info", str(graph), "--json").stdout)
+    assert info["weight_count"] == data["snn"]["footprint"]["parameters"]
+    text = _cli("nir", "info", str(graph)).stdout
+    assert f"{info['weight_count']:,} weights and biases" in text
+    md = (report / "report.md").read_text()
+    assert f"| footprint | weights and biases | {info['weight_count']:,} |" in md
+    assert "{'" not in md and not re.search(r"\d\.\d{7,}", md)  # no dicts, no 16-digit floats
+
+
+@pytest.mark.timeout(600)
 def test_every_energy_in_the_report_is_count_times_a_profile_price(report: Path) -> None:
     data = json.loads((report / "report.json").read_text())
     profiles = {name: load_profile(name) for name in data["profiles"]}
