@@ -12,7 +12,7 @@ from typing import Annotated
 import typer
 
 from snnkart.cli.console import ConsoleReporter, print_headline
-from snnkart.cli.guard import fail, guard, interrupted_exit
+from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
 from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
 from snnkart.cli.report_commands import plot_app, report
@@ -105,6 +105,7 @@ def demo(
         Path | None,
         typer.Option(help="instead: render the scripted driver on steer/small_S to this GIF"),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """The main job: train a spiking policy and its same-width ANN baseline on grid/small_S,
     export the SNN to NIR, drive the kart on Lava's simulated Loihi, and report its energy
@@ -122,7 +123,9 @@ def demo(
     if min(steps, ann_steps, lava_episodes, eval_episodes) < 1:
         fail("--steps, --ann-steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
-    from snnkart.app.pipeline import run_pipeline
+    from snnkart.app.pipeline import main_job_files, run_pipeline
+
+    refuse_other_files(out, main_job_files(), force)  # its own files: it resumes in them
     from snnkart.report.document import headline
 
     finished = guard(
@@ -170,6 +173,7 @@ def train(
         ),
     ] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
+    force: ForceOpt = False,
 ) -> None:
     """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.app.train import run_training
@@ -188,6 +192,8 @@ def train(
 
             load_track(cfg.track)
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
+        if not resume and not (run_dir / "config.toml").exists():  # a run: refused below
+            refuse_other_files(run_dir, (), force)
         extend = steps if resume else None  # a resume keeps the run's length unless --steps
         code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume, extend)
     except KeyboardInterrupt as exc:  # before training began: nothing to save yet
@@ -253,7 +259,10 @@ def eval_(
     directory is exported to NIR first. The policy runs on the track it was trained on
     (carried in its checkpoint and manifest), or on ``--track``."""
     from snnkart.app.evaluate import run_eval, run_eval_exported
+    from snnkart.app.pipeline import main_job_hint
 
+    if hint := main_job_hint(run_dir, exported=backend != "torch"):
+        fail(hint)
     if backend != "torch":
         from snnkart.eval.request import BACKENDS, DeployRequest
 
@@ -361,6 +370,7 @@ def deploy(
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="directory for deploy.json")
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Run an exported policy in closed loop on Lava's simulated Loihi (or the reference),
     checked step by step against the numpy reference; print and write metrics and counts."""
@@ -369,6 +379,10 @@ def deploy(
 
     if out is None:
         out = nir_file.parent / f"deploy-{backend}-{precision}"
+    else:
+        from snnkart.report.document import REPORT_FILES  # a report may share the directory
+
+        refuse_other_files(out, {"deploy.json", *REPORT_FILES}, force)
     request = guard(
         lambda: DeployRequest(nir_file, backend, precision, episodes, seed, env, track, out)
     )
