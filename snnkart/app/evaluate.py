@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from snnkart import faults
+from snnkart.app.pipeline import refuse_main_job_folder
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.eval_record import EVAL_SCHEMA, EvalRecord
@@ -41,6 +42,7 @@ def run_eval(
     from snnkart.eval.video import check_video_path
     from snnkart.rl.trained import TorchPredictor, load_run
 
+    refuse_main_job_folder(run_dir, exported=False)
     if video is not None:
         check_video_path(video)
         if render:
@@ -152,6 +154,7 @@ def run_eval_exported(
     ``eval-<backend>-<precision>/`` beside the target."""
     from snnkart.app.deploy import run_deploy_reported
 
+    refuse_main_job_folder(target, exported=True)
     name = f"eval-{request.backend}-{request.precision}"
     with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
         if target.is_dir():

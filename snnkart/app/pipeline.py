@@ -25,6 +25,7 @@ from typing import Any
 from snnkart import faults
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
+from snnkart.errors import UsageError
 from snnkart.io import write_json
 
 DEMO_ENV = "grid"
@@ -55,14 +56,16 @@ def main_job_files() -> frozenset[str]:
                       QUANT_FILE, REPORT_DIR, *deploys})  # fmt: skip
 
 
-def main_job_hint(path: Path, exported: bool) -> str:
-    """For a main job's ``out`` given where a run (or, ``exported``, a NIR file) is wanted:
-    what to give instead; "" for any other path."""
+def refuse_main_job_folder(path: Path, exported: bool) -> None:
+    """Refuse a main job's ``out`` given where a run (or, ``exported``, a NIR file) is wanted,
+    naming what to give instead; any other path passes."""
     if (path / "config.toml").exists() or not (path / SNN_RUN / "config.toml").is_file():
-        return ""
+        return
     policy = path / POLICY_FILE if exported and (path / POLICY_FILE).is_file() else path / SNN_RUN
-    return (f"{path} is the main job's folder (snnkart demo), not a run: did you mean {policy} "
-            f"(its SNN; the ANN baseline is {path / ANN_RUN})?")  # fmt: skip
+    raise UsageError(
+        f"{path} is the main job's folder (snnkart demo), not a run: did you mean {policy} "
+        f"(its SNN; the ANN baseline is {path / ANN_RUN})?"
+    )
 
 
 def run_pipeline(

@@ -19,7 +19,7 @@ from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
-from snnkart.errors import SnnkartError, did_you_mean
+from snnkart.errors import CheckpointWriteError, SnnkartError, did_you_mean
 
 app = typer.Typer(
     name="snnkart",
@@ -177,7 +177,7 @@ def train(
 ) -> None:
     """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.app.train import run_training
-    from snnkart.rl.checkpoint import CheckpointWriteError
+    from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config
 
     overrides = {
@@ -188,12 +188,9 @@ def train(
     try:
         cfg = load_config(config, overrides, set_)
         if not resume:
-            from snnkart.envs.tracks import load_track
-
             load_track(cfg.track)
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
-        if not resume and not (run_dir / "config.toml").exists():  # a run: refused below
-            refuse_other_files(run_dir, (), force)
+        refuse_other_files(run_dir, (), force or resume or (run_dir / "config.toml").exists())
         extend = steps if resume else None  # a resume keeps the run's length unless --steps
         code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume, extend)
     except KeyboardInterrupt as exc:  # before training began: nothing to save yet
@@ -259,10 +256,7 @@ def eval_(
     directory is exported to NIR first. The policy runs on the track it was trained on
     (carried in its checkpoint and manifest), or on ``--track``."""
     from snnkart.app.evaluate import run_eval, run_eval_exported
-    from snnkart.app.pipeline import main_job_hint
 
-    if hint := main_job_hint(run_dir, exported=backend != "torch"):
-        fail(hint)
     if backend != "torch":
         from snnkart.eval.request import BACKENDS, DeployRequest
 
