@@ -302,7 +302,7 @@ def ann_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def report(deployed: Path, ann_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("report")
-    sweep = out / "sweep.json"
+    sweep = tmp_path_factory.mktemp("sweep") / "sweep.json"  # not in --out: not the report's
     sweep.write_text(json.dumps(_sweep_from(deployed)))
     result = _cli("report", str(deployed), "--ann", str(ann_run), "--sweep", str(sweep),
                   "--step", "5", "--out", str(out))  # fmt: skip
