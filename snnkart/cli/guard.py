@@ -55,11 +55,12 @@ ForceOpt = Annotated[
 
 def refuse_other_files(out: Path, own: Collection[str] = (), force: bool = False) -> None:
     """Stop before writing into an ``--out`` directory that holds files other than the
-    command's own (``own``: the names it writes there), unless ``force``; --force deletes
-    nothing, the command only adds and replaces its own files."""
+    command's own (``own``: the names it writes there; hidden files, such as a killed atomic
+    write's temporary, do not count), unless ``force``; --force deletes nothing, the command
+    only adds and replaces its own files."""
     if force or not out.is_dir():
         return
-    other = sorted(p.name for p in out.iterdir() if p.name not in own)
+    other = sorted(p.name for p in out.iterdir() if p.name not in own and p.name[0] != ".")
     if other:
         shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
         fail(f"{out} already holds other files ({shown}); choose an empty or new --out, or "
