@@ -60,6 +60,7 @@ def test_help_has_examples_and_reads_cleanly(path: tuple[str, ...]) -> None:
     examples = lines[next(i for i, line in enumerate(lines) if "Examples:" in line) :]
     command = " ".join(("snnkart", *path))
     assert any(line.strip().startswith(command) for line in examples), (command, examples)
+    assert all(line.strip().startswith("snnkart ") for line in examples[1:] if line.strip())
     assert "``" not in text
     assert "<bool>" not in text
     assert max(len(line.rstrip()) for line in lines) <= WIDTH

@@ -15,8 +15,7 @@ import typer
 from rich.markup import escape
 from typer.core import TyperCommand, TyperGroup, TyperOption
 
-_RUN = "runs/steer-snn-small_S-s1"
-_ANN = "runs/steer-ann-small_S-s1"
+_RUN, _ANN = "runs/steer-snn", "runs/steer-ann"  # as the README names them
 EXAMPLES: dict[str, tuple[str, ...]] = {
     "": ("snnkart demo", "snnkart train --env grid --policy snn", "snnkart eval --help"),
     "play": ("snnkart play", "snnkart play --env grid --track small_S"),
@@ -45,9 +44,9 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "nir info": ("snnkart nir info policy.nir", "snnkart nir info model.nir --dt 1e-4 --json"),
     "nir run": ("snnkart nir run policy.nir --input currents.npy --check",),
     "nir manifest": ("snnkart nir manifest model.nir --env steer --dt 1e-4",),
-    "ros": ("snnkart ros drive runs/gazebo-snn-small_S-s1",),
-    "ros sim": ("snnkart ros sim --policy runs/gazebo-snn-small_S-s1",),
-    "ros drive": ("snnkart ros drive runs/gazebo-snn-small_S-s1/policy.nir --backend lava-sim",),
+    "ros": ("snnkart ros drive runs/gazebo-snn",),
+    "ros sim": ("snnkart ros sim --policy runs/gazebo-snn",),
+    "ros drive": ("snnkart ros drive runs/gazebo-snn/policy.nir --backend lava-sim",),
 }
 """Examples by command path ("" is ``snnkart`` itself); :func:`finish_help` requires one for
 every command, so a new command cannot ship without."""

@@ -362,7 +362,13 @@ def deploy(
     episodes: Annotated[int, typer.Option(help="number of seeded episodes")] = 10,
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="directory for deploy.json")
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            help="directory for deploy.json (default: "
+            "deploy-BACKEND-PRECISION beside the NIR file)",
+        ),
     ] = None,
     force: ForceOpt = False,
 ) -> None:
