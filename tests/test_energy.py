@@ -302,7 +302,7 @@ def ann_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def report(deployed: Path, ann_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("report")
-    sweep = out / "sweep.json"
+    sweep = tmp_path_factory.mktemp("sweep") / "sweep.json"  # not in --out: not the report's
     sweep.write_text(json.dumps(_sweep_from(deployed)))
     result = _cli("report", str(deployed), "--ann", str(ann_run), "--sweep", str(sweep),
                   "--step", "5", "--out", str(out))  # fmt: skip
@@ -357,6 +357,19 @@ def test_report_files_and_schema(report: Path) -> None:
     ann_task = data["ann"]["run"]["task"]
     assert (ann_task["episodes"], ann_task["first_seed"]) == (3, 10_000)
     assert 0 <= ann_task["success_rate"] <= 1
+
+
+@pytest.mark.timeout(600)
+def test_nir_info_and_the_report_count_the_same_parameters(report: Path) -> None:
+    data = json.loads((report / "report.json").read_text())
+    graph = Path(data["deploy"]["file"]).parent / "policy.nir"
+    info = json.loads(_cli("nir", "info", str(graph), "--json").stdout)
+    assert info["weight_count"] == data["snn"]["footprint"]["parameters"]
+    text = _cli("nir", "info", str(graph)).stdout
+    assert f"{info['weight_count']:,} weights and biases" in text
+    md = (report / "report.md").read_text()
+    assert f"| footprint | weights and biases | {info['weight_count']:,} |" in md
+    assert "{'" not in md and not re.search(r"\d\.\d{7,}", md)  # no dicts, no 16-digit floats
 
 
 @pytest.mark.timeout(600)

@@ -104,6 +104,8 @@ def test_info_without_dt_checks_the_structure_and_says_dt_is_missing(files) -> N
     order = [text.index(k) for k in ("in: Input", "fc0: Affine", "n0: CubaLIF", "ro: Affine")]
     assert order == sorted(order)  # along the edges
     assert "7 nodes" in text
+    # weights and biases as the energy report counts them, the neurons' own parameters apart
+    assert "132 parameters (62 weights and biases + 70 neuron parameters)" in text
 
 
 @pytest.mark.parametrize(("how", "beta0", "alpha0"), [

@@ -237,9 +237,9 @@ SUMMARY_LINES = {
         "time-outs 0",
         "agreement with the float32 policy (torch order): 99.43% identical actions, 2932 spike "
         "flips per million neuron-steps",
-        "per env step (policy): spikes L0: 142.3, L1: 167.8; synops L0: 9109, L1: 839",
-        "pipeline overhead per env step (fill/drain, not the policy): spikes L0: 0.00, L1: 0.54; "
-        "neuron updates L0: 64, L1: 64",
+        "per env step (policy): spikes layer 1: 142.3, layer 2: 167.8; synops layer 1: 9109, layer 2: 839",
+        "pipeline overhead per env step (fill/drain, not the policy): spikes layer 1: 0.00, layer 2: 0.54; "
+        "neuron updates layer 1: 64, layer 2: 64",
         "0.7 ms per env step, start-up 0.0 s",
     ],
     "deploy-lava-sim-fixed-big_S.json": [
@@ -250,9 +250,9 @@ SUMMARY_LINES = {
         "rasters), 0 actions differ",
         "agreement with the float32 policy (torch order): 100.00% identical actions, 2729 spike "
         "flips per million neuron-steps",
-        "per env step (policy): spikes L0: 187.9, L1: 187.6; synops L0: 12028, L1: 938",
-        "pipeline overhead per env step (fill/drain, not the policy): spikes L0: 0.00, L1: 0.44; "
-        "neuron updates L0: 64, L1: 64",
+        "per env step (policy): spikes layer 1: 187.9, layer 2: 187.6; synops layer 1: 12028, layer 2: 938",
+        "pipeline overhead per env step (fill/drain, not the policy): spikes layer 1: 0.00, layer 2: 0.44; "
+        "neuron updates layer 1: 64, layer 2: 64",
         "7.5 ms per env step, start-up 1.1 s",
     ],
 }

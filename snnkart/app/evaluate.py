@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from snnkart import faults
+from snnkart.app.pipeline import refuse_main_job_folder
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.eval_record import EVAL_SCHEMA, EvalRecord
@@ -44,6 +45,7 @@ def run_eval(
     from snnkart.eval.episodes import EvalSummary
     from snnkart.rl.trained import TorchPredictor, load_run
 
+    refuse_main_job_folder(run_dir, exported=False)
     _check_video(video, video_episodes, render)
     run = load_run(run_dir, checkpoint)
     choice = _track_choice(run, track)
@@ -167,6 +169,7 @@ def run_eval_exported(
     ``eval-<backend>-<precision>/`` beside the target."""
     from snnkart.app.deploy import run_deploy_reported
 
+    refuse_main_job_folder(target, exported=True)
     name = f"eval-{request.backend}-{request.precision}"
     with tempfile.TemporaryDirectory(prefix="snnkart-eval-") as tmp:
         if target.is_dir():

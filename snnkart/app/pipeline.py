@@ -25,6 +25,7 @@ from typing import Any
 from snnkart import faults
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
+from snnkart.errors import UsageError
 from snnkart.io import write_json
 
 DEMO_ENV = "grid"
@@ -38,6 +39,33 @@ stay as they are): T = 4 and a firing-rate penalty of 0.05, the sparse point of 
 study (why: docs/results.md, "Why the defaults are what they are")."""
 QUANT_EPISODES = 50
 EVAL_SEED = 10_000
+SNN_RUN, ANN_RUN, POLICY_FILE, REPORT_DIR = "snn", "ann", "policy.nir", "report"
+"""Where the main job writes in its ``out``: the SNN run, the ANN run, the exported SNN, the
+report; beside them the quantisation's effect (:data:`QUANT_FILE`) and the Lava deployments."""
+QUANT_FILE = "quantization.json"
+PRECISIONS = ("fixed", "float")
+"""The Lava deployments, each in ``out/deploy-lava-sim-<precision>``."""
+
+
+def main_job_files() -> frozenset[str]:
+    """Every name the main job writes in its ``out`` directory."""
+    from snnkart.contract.manifest import manifest_path
+
+    deploys = {f"deploy-lava-sim-{p}" for p in PRECISIONS}
+    return frozenset({SNN_RUN, ANN_RUN, POLICY_FILE, manifest_path(Path(POLICY_FILE)).name,
+                      QUANT_FILE, REPORT_DIR, *deploys})  # fmt: skip
+
+
+def refuse_main_job_folder(path: Path, exported: bool) -> None:
+    """Refuse a main job's ``out`` given where a run (or, ``exported``, a NIR file) is wanted,
+    naming what to give instead; any other path passes."""
+    if (path / "config.toml").exists() or not (path / SNN_RUN / "config.toml").is_file():
+        return
+    policy = path / POLICY_FILE if exported and (path / POLICY_FILE).is_file() else path / SNN_RUN
+    raise UsageError(
+        f"{path} is the main job's folder (snnkart demo), not a run: did you mean {policy} "
+        f"(its SNN; the ANN baseline is {path / ANN_RUN})?"
+    )
 
 
 def run_pipeline(
@@ -52,7 +80,7 @@ def run_pipeline(
     running the command again resumes)."""
     with faults.caught():  # Ctrl-C and SIGTERM are taken between env steps
         out.mkdir(parents=True, exist_ok=True)
-        run_dir, ann_dir = out / "snn", out / "ann"
+        run_dir, ann_dir = out / SNN_RUN, out / ANN_RUN
         for i, (policy, where, n) in enumerate(
             (("snn", run_dir, steps), ("ann", ann_dir, ann_steps))
         ):
@@ -64,11 +92,11 @@ def run_pipeline(
         nir_path = _export(run_dir, out, reporter)
         quant = _quantisation(run_dir, nir_path, out, episodes, reporter)
         records = _deploy(nir_path, out, lava_episodes, reporter)
-        report = _report(out / "deploy-lava-sim-fixed", ann_dir, out / "report", reporter)
+        report = _report(out / "deploy-lava-sim-fixed", ann_dir, out / REPORT_DIR, reporter)
         reporter.message(
             f"\nfiles: runs {run_dir} and {ann_dir}, policy {nir_path}, quantisation "
-            f"{out / 'quantization.json'}, Lava results "
-            f"{out}/deploy-lava-sim-{{fixed,float}}/deploy.json, report {out / 'report'}"
+            f"{out / QUANT_FILE}, Lava results "
+            f"{out}/deploy-lava-sim-{{fixed,float}}/deploy.json, report {out / REPORT_DIR}"
         )
         return {"quantization": quant, "deploy": records, "report": report}
 
@@ -104,7 +132,7 @@ def _export(run_dir: Path, out: Path, reporter: Reporter) -> Path:
     from snnkart.rl.trained import load_run
 
     reporter.message("[3/6] exporting the spiking actor to NIR")
-    nir_path, manifest_file = export_nir(load_run(run_dir), out / "policy.nir")
+    nir_path, manifest_file = export_nir(load_run(run_dir), out / POLICY_FILE)
     reporter.message(f"      {nir_path}\n      {manifest_file}")
     return nir_path
 
@@ -147,7 +175,7 @@ def _quantisation(
         "fixed_reference": asdict(summaries["fixed point"]),
         "success_retained": retained,
     }
-    write_json(out / "quantization.json", quant)
+    write_json(out / QUANT_FILE, quant)
     return quant
 
 
@@ -159,7 +187,7 @@ def _deploy(
 
     reporter.message(f"[5/6] deploying on lava-sim ({lava_episodes} episodes fixed, 2 float)")
     records = {}
-    for precision, episodes in (("fixed", lava_episodes), ("float", 2)):
+    for precision, episodes in zip(PRECISIONS, (lava_episodes, 2), strict=True):
         request = DeployRequest(
             nir_path, "lava-sim", precision, episodes, EVAL_SEED,
             out=out / f"deploy-lava-sim-{precision}",

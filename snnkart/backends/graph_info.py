@@ -18,6 +18,9 @@ import numpy as np
 from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
 from snnkart.backends.quantize import lava_problems
 
+WEIGHT_FIELDS = ("weight", "bias")
+"""The fields counted as weights and biases: what the energy report's footprint counts too;
+every other field (time constants, resistances, thresholds, ...) is a neuron parameter."""
 PARAMETER_FIELDS = (
     "weight", "bias", "scale", "tau", "tau_mem", "tau_syn", "r", "w_in", "v_leak",
     "v_threshold", "v_reset", "delay",
@@ -32,13 +35,15 @@ class NodeInfo:
     output_shape: list[int] | None
     parameters: dict[str, str]  # field -> summary ("shape [4]: 0.5 .. 2")
     count: int  # parameter values
+    weights: int  # of them, weights and biases (WEIGHT_FIELDS)
 
 
 @dataclass
 class GraphInfo:
     nodes: list[NodeInfo]
     edges: list[tuple[str, str]]
-    parameter_count: int
+    parameter_count: int  # every value: weight_count + neuron parameters
+    weight_count: int  # weights and biases, as the energy report's footprint counts them
     dt: float | None  # the dt used to discretise (None: none given)
     dt_source: str  # where dt came from, or why there is none
     discretisation: str
@@ -78,11 +83,12 @@ def _summary(value: Any) -> tuple[str, int]:
 
 
 def _node(name: str, node: Any) -> NodeInfo:
-    params, count = {}, 0
+    params, count, weights = {}, 0, 0
     for key in PARAMETER_FIELDS:
         if hasattr(node, key):
             params[key], n = _summary(getattr(node, key))
             count += n
+            weights += n if key in WEIGHT_FIELDS else 0
     return NodeInfo(
         name,
         type(node).__name__,
@@ -90,6 +96,7 @@ def _node(name: str, node: Any) -> NodeInfo:
         _shape(getattr(node, "output_type", None), "output"),
         params,
         count,
+        weights,
     )
 
 
@@ -126,6 +133,7 @@ def describe_graph(
         nodes=nodes,
         edges=[(str(a), str(b)) for a, b in graph.edges],
         parameter_count=sum(n.count for n in nodes),
+        weight_count=sum(n.weights for n in nodes),
         dt=dt,
         dt_source=dt_source,
         discretisation=discretisation,

@@ -3,8 +3,9 @@ say what was kept, anything else is a bug and shows its traceback."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import NoReturn, TypeVar
+from collections.abc import Callable, Collection
+from pathlib import Path
+from typing import Annotated, NoReturn, TypeVar
 
 import typer
 
@@ -45,3 +46,22 @@ def interrupted_exit(exc: KeyboardInterrupt, what: str) -> NoReturn:
     name = exc.name if isinstance(exc, Interrupted) else "SIGINT"
     typer.secho(f"interrupted ({name}): {what}", fg=typer.colors.YELLOW, err=True)
     raise typer.Exit(code)
+
+
+ForceOpt = Annotated[
+    bool, typer.Option("--force", help="write into an --out that holds other files (deletes none)")
+]
+
+
+def refuse_other_files(out: Path, own: Collection[str] = (), force: bool = False) -> None:
+    """Stop before writing into an ``--out`` directory that holds files other than the
+    command's own (``own``: the names it writes there; hidden files, such as a killed atomic
+    write's temporary, do not count), unless ``force``; --force deletes nothing, the command
+    only adds and replaces its own files."""
+    if force or not out.is_dir():
+        return
+    other = sorted(p.name for p in out.iterdir() if p.name not in own and p.name[0] != ".")
+    if other:
+        shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
+        fail(f"{out} already holds other files ({shown}); choose an empty or new --out, or "
+             "pass --force to write into it anyway (nothing is deleted)")  # fmt: skip

@@ -12,13 +12,14 @@ from typing import Annotated
 import typer
 
 from snnkart.cli.console import ConsoleReporter, print_headline
-from snnkart.cli.guard import fail, guard, interrupted_exit
+from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
+from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
 from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
-from snnkart.errors import SnnkartError, did_you_mean
+from snnkart.errors import CheckpointWriteError, SnnkartError, did_you_mean
 
 app = typer.Typer(
     name="snnkart",
@@ -104,6 +105,7 @@ def demo(
         Path | None,
         typer.Option(help="instead: render the scripted driver on steer/small_S to this GIF"),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """The main job: train a spiking policy and its same-width ANN baseline on grid/small_S,
     export the SNN to NIR, drive the kart on Lava's simulated Loihi, and report its energy
@@ -121,7 +123,9 @@ def demo(
     if min(steps, ann_steps, lava_episodes, eval_episodes) < 1:
         fail("--steps, --ann-steps, --lava-episodes and --eval-episodes must be >= 1")
     from snnkart import faults
-    from snnkart.app.pipeline import run_pipeline
+    from snnkart.app.pipeline import main_job_files, run_pipeline
+
+    refuse_other_files(out, main_job_files(), force)  # its own files: it resumes in them
     from snnkart.report.document import headline
 
     finished = guard(
@@ -135,11 +139,7 @@ def demo(
     print_headline(finished["report"], headline(finished["report"]))
 
 
-@app.command(
-    epilog="Examples: snnkart train --env grid --policy snn --out runs/grid-snn  |  "
-    "snnkart train --resume --out runs/grid-snn  |  "
-    "snnkart train --set ppo.learning_rate=1e-3 --set snn.num_steps=4"
-)
+@app.command()
 def train(
     env: Annotated[
         str | None,
@@ -173,10 +173,11 @@ def train(
         ),
     ] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
+    force: ForceOpt = False,
 ) -> None:
     """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.app.train import run_training
-    from snnkart.rl.checkpoint import CheckpointWriteError
+    from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config
 
     overrides = {
@@ -187,10 +188,9 @@ def train(
     try:
         cfg = load_config(config, overrides, set_)
         if not resume:
-            from snnkart.envs.tracks import load_track
-
             load_track(cfg.track)
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
+        refuse_other_files(run_dir, (), force or resume or (run_dir / "config.toml").exists())
         extend = steps if resume else None  # a resume keeps the run's length unless --steps
         code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume, extend)
     except KeyboardInterrupt as exc:  # before training began: nothing to save yet
@@ -376,8 +376,15 @@ def deploy(
     episodes: Annotated[int, typer.Option(help="number of seeded episodes")] = 10,
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="directory for deploy.json")
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            help="directory for deploy.json (default: "
+            "deploy-BACKEND-PRECISION beside the NIR file)",
+        ),
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Run an exported policy in closed loop on Lava's simulated Loihi (or the reference),
     checked step by step against the numpy reference; print and write metrics and counts."""
@@ -386,6 +393,10 @@ def deploy(
 
     if out is None:
         out = nir_file.parent / f"deploy-{backend}-{precision}"
+    else:
+        from snnkart.report.document import REPORT_FILES  # a report may share the directory
+
+        refuse_other_files(out, {"deploy.json", *REPORT_FILES}, force)
     request = guard(
         lambda: DeployRequest(nir_file, backend, precision, episodes, seed, env, track, out)
     )
@@ -398,6 +409,7 @@ app.command()(study)
 app.add_typer(plot_app, name="plot")
 app.add_typer(nir_app, name="nir")
 app.add_typer(ros_app, name="ros")
+finish_help(app)  # after every command: examples and tidy help for each
 
 
 def main() -> None:

@@ -48,8 +48,10 @@ def info(
     if as_json:
         typer.echo(json.dumps(facts.as_dict(), indent=2))
         return
+    neuron = facts.parameter_count - facts.weight_count
     typer.echo(f"{graph}: {len(facts.nodes)} nodes, {len(facts.edges)} edges, "
-               f"{facts.parameter_count:,} parameters")  # fmt: skip
+               f"{facts.parameter_count:,} parameters ({facts.weight_count:,} weights and biases "
+               f"+ {neuron:,} neuron parameters)")  # fmt: skip
     for node in facts.nodes:
         shapes = f"in {node.input_shape} out {node.output_shape}"
         typer.echo(f"  {node.name}: {node.kind} ({shapes})")

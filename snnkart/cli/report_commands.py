@@ -9,7 +9,7 @@ from typing import Annotated
 import typer
 
 from snnkart.cli.console import ConsoleReporter, print_headline
-from snnkart.cli.guard import guard
+from snnkart.cli.guard import ForceOpt, guard, refuse_other_files
 
 
 def report(
@@ -42,11 +42,15 @@ def report(
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="directory (default: the deployment's)")
     ] = None,
+    force: ForceOpt = False,
 ) -> None:
     """Energy per inference and per episode of the deployed spiking policy against the ANN
     baseline on hardware profiles, with the task performance of both: report.json, .md, .html."""
     from snnkart.app.report import run_report
-    from snnkart.report.document import headline
+    from snnkart.report.document import REPORT_FILES, headline
+
+    if out is not None:  # its default, the deployment's directory, holds the deployment too
+        refuse_other_files(out, {*REPORT_FILES, "deploy.json"}, force)
 
     reporter = ConsoleReporter()
     record = guard(

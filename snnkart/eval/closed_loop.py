@@ -244,17 +244,17 @@ def summary_lines(record: DeployRecord) -> list[str]:
         )
     lines.append(
         "per env step (policy): spikes "
-        + ", ".join(f"L{i}: {x / n:.1f}" for i, x in enumerate(c.spikes))
+        + _per_layer(c.spikes, n, ".1f")
         + "; synops "
-        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(c.synops))
+        + _per_layer(c.synops, n, ".0f")
     )
     o = c.pipeline_overhead or OverheadCounts([0] * len(c.spikes), [0] * len(c.spikes),
                                               [0] * len(c.spikes))  # fmt: skip
     lines.append(
         "pipeline overhead per env step (fill/drain, not the policy): spikes "
-        + ", ".join(f"L{i}: {x / n:.2f}" for i, x in enumerate(o.spikes))
+        + _per_layer(o.spikes, n, ".2f")
         + "; neuron updates "
-        + ", ".join(f"L{i}: {x / n:.0f}" for i, x in enumerate(o.neuron_updates))
+        + _per_layer(o.neuron_updates, n, ".0f")
     )
     lines.append(f"{t.ms_per_env_step:.1f} ms per env step, start-up {t.startup_s:.1f} s")
     return lines
@@ -276,3 +276,8 @@ __all__ = [
     "run_deploy",
     "summary_lines",
 ]
+
+
+def _per_layer(values: list[float] | list[int], n: int, fmt: str) -> str:
+    """Per-layer values divided by ``n``, named as the report and the panel name layers."""
+    return ", ".join(f"layer {i + 1}: {x / n:{fmt}}" for i, x in enumerate(values))

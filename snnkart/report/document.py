@@ -148,6 +148,41 @@ def _counts_rows(report: dict[str, Any]) -> list[dict[str, str]]:
     return rows
 
 
+FACT_GROUPS = (
+    ("deployed", "as deployed, per inference"),
+    ("neurobench", "NeuroBench (first layer fed at every step)"),
+    ("footprint", "footprint"),
+    ("latency", "latency"),
+)
+FACT_NAMES = {"parameters": "weights and biases", "parameter_bytes_fp32": "weight and bias "
+              "bytes (fp32)", "host_macs": "host MACs", "effective_macs": "effective MACs",
+              "effective_acs": "effective ACs", "ms_per_env_step": "ms per env step"}  # fmt: skip
+
+
+def _num(value: Any) -> str:
+    """A count with thousands separators; any other number to 3 significant digits."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return str(value)
+    if float(value).is_integer():
+        return f"{int(value):,}"
+    return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
+
+
+def _facts_rows(report: dict[str, Any]) -> list[dict[str, str]]:
+    """The SNN's deployed counts, NeuroBench's metrics, footprint and latency, one per row."""
+    snn = report["snn"]
+    return [
+        {"": group, "quantity": FACT_NAMES.get(key, key.replace("_", " ")), "value": _num(value)}
+        for section, group in FACT_GROUPS
+        for key, value in snn[section].items()
+    ]
+
+
+def _density(d: float) -> str:
+    """A multiple of today's spikes, readable however small (0.0031x, not 0.00x)."""
+    return f"{d:.2f}x" if d >= 0.1 else f"{d:.2g}x"
+
+
 def _times(ratio: float) -> str:
     return f"{ratio:,.0f}x" if ratio >= 100 else f"{ratio:.3g}x"
 
@@ -164,10 +199,12 @@ def _verdict(report: dict[str, Any]) -> list[str]:
             if c["ann"] != primary or c["snn_profile"] != chip or c["ratio"] is None:
                 continue
             be = c["break_even"]
-            if be.get("density") is None:
-                note = "no sparsity breaks even"
-            else:
-                note = f"wins below {be['density']:.2f}x today's spikes"
+            if be.get("density") is not None:
+                note = f"wins below {_density(be['density'])} today's spikes"
+            elif be["fixed_pj"] >= be["ann_pj"]:
+                note = "cannot win at any spike rate"
+            else:  # its energy does not grow with its spikes and is below the ANN's
+                note = "wins at any spike rate"
             parts.append(f"{_times(c['ratio'])} the {label} on {c['ann_profile']} ({note})")
         lines.append(f"SNN on {chip}: " + "; ".join(parts) + ".")
     return lines
@@ -189,9 +226,7 @@ def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
         "## Verdict", "", *[f"- {line}" for line in _verdict(report)], "",
         "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
         "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
-        f"As deployed: {snn['deployed']}. NeuroBench's definitions (the first layer fed at every "
-        f"step): {snn['neurobench']}. Footprint: {snn['footprint']}. "
-        f"Latency: {snn['latency']}.", "",
+        "## Totals, footprint and latency", "", _md_table(_facts_rows(report)),
         "## What the estimate includes", "", *[f"- {x}" for x in INCLUDES], "",
         "## What it leaves out", "", *[f"- {x}" for x in LEAVES_OUT], "",
         "## References", "", *[f"- {x}" for x in REFERENCES], "",
@@ -223,6 +258,9 @@ CAPTIONS = {
     "raster": "Spike raster and membrane traces of every layer for one env step.",
 }
 
+REPORT_FILES = ("report.json", "report.md", "report.html", *(f"{name}.png" for name in CAPTIONS))
+"""Every file :func:`write_report` may write."""
+
 
 def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
     md_sections = markdown(report, list(figs))
@@ -251,6 +289,7 @@ def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
         f"<h2>Energy per inference and per episode, with the task</h2>"
         f"{_html_table(headline(report), 'headline')}"
         f"<h2>Counts per inference (measured)</h2>{_html_table(_counts_rows(report), 'counts')}"
+        f"<h2>Totals, footprint and latency</h2>{_html_table(_facts_rows(report), 'facts')}"
         f"<h2>Figures</h2>{figures}"
         f"<h2>What the estimate includes</h2>{lists['What the estimate includes']}"
         f"<h2>What it leaves out</h2>{lists['What it leaves out']}"

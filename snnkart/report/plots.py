@@ -107,7 +107,8 @@ def sensitivity(rows: Sequence[dict[str, Any]], curve: Sequence[tuple[float, flo
     right.axvline(1.0, color="black", linewidth=1)
     if break_even is not None and break_even <= max(d):
         right.axvline(break_even, color="#2ca02c", linewidth=1)
-        right.text(break_even, max(ratio), f" break-even {break_even:.2f}x", color="#2ca02c",
+        shown = f"{break_even:.2f}" if break_even >= 0.1 else f"{break_even:.2g}"  # not 0.00
+        right.text(break_even, max(ratio), f" break-even {shown}x", color="#2ca02c",
                    va="top", fontsize=8)  # fmt: skip
     elif break_even is None:
         right.text(0.02, 0.98, f"no break-even: with no spikes at all\nthe SNN still costs "
