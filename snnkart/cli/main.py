@@ -15,6 +15,7 @@ from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
 from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
+from snnkart.cli.replay import replay
 from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
@@ -296,42 +297,6 @@ def eval_(
 
 
 @app.command()
-def replay(
-    run_dirs: Annotated[list[Path], typer.Argument(help="a training run (--compare: 1 to 4)")],
-    mode: Annotated[
-        str,
-        typer.Option(
-            help="batch: iteration by iteration; all: everything at once. Each episode is "
-            "shown whole, from its reset pose, in the iteration it ended in (as training "
-            "counts it); episodes unfinished when training stopped or resumed are not "
-            "shown, and the output says how many",
-        ),
-    ] = "batch",
-    compare: Annotated[
-        bool, typer.Option(help="race the runs' trained policies on one track, one colour each")
-    ] = False,
-    seed: Annotated[int, typer.Option(help="--compare: the episode's seed")] = 10_000,
-    track: Annotated[
-        str | None, typer.Option("--track", "-t", help="--compare: default the first run's")
-    ] = None,
-    out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="GIF or MP4 instead of a window")
-    ] = None,
-    every: Annotated[int, typer.Option(help="show every n-th time step")] = 2,
-) -> None:
-    """Replay the episodes recorded during training, several karts at once; or, with
-    --compare, the trained policies of up to four runs side by side (e.g. ANN vs SNN)."""
-    from snnkart.app.replay import run_compare, run_replay
-
-    if compare:
-        guard(lambda: run_compare(run_dirs, out, seed, track, every, ConsoleReporter()))
-        return
-    if len(run_dirs) != 1:
-        fail(f"replay takes one run ({len(run_dirs)} given); use --compare for several")
-    guard(lambda: run_replay(run_dirs[0], mode, out, every, ConsoleReporter()))
-
-
-@app.command()
 def export(
     run_dir: Annotated[Path, typer.Argument(help="a training run of an SNN policy")],
     nir_format: Annotated[
@@ -403,6 +368,7 @@ def deploy(
     guard(lambda: run_deploy_reported(request, ConsoleReporter()), _deploy_interrupted(backend))
 
 
+app.command()(replay)
 app.command()(report)
 app.command()(sweep)
 app.command()(study)
