@@ -108,7 +108,8 @@ def test_report_sweep_refuses_an_old_or_foreign_file_in_one_line(
     deployment = sweep / "runs" / "small_S-grid-snn-T2-s1" / EVAL
     old = tmp_path / "bench_sparsity-grid.json"
     old.write_text(json.dumps({"benchmark": "bench_sparsity", "env": "grid", "runs": []}))
-    result = _cli("report", str(deployment), "--sweep", str(old), "--out", str(tmp_path))
+    out = tmp_path / "report"  # the sweep file beside it would be "other files" in --out
+    result = _cli("report", str(deployment), "--sweep", str(old), "--out", str(out))
     assert result.returncode != 0
     assert ("written by bench_sparsity, an older snnkart; run `snnkart study "
             "studies/sparsity.toml` again") in result.stderr  # fmt: skip
