@@ -209,13 +209,13 @@ def _prices(raw: dict[str, Any], kind: str, source: str) -> tuple[dict[str, Pric
         raise ProfileError(
             f"{source}: prices: missing; add a [prices.<operation>] table per operation"
         )
+    prices = {op: _price(table.get(op), f"{source}: prices.{op}", op) for op in PRICES[kind]}
     extra = sorted(set(table) - set(PRICES[kind]) - set(OPTIONAL[kind]))
     if extra:
         raise ProfileError(
             f"{source}: prices.{extra[0]}: unknown operation for a {kind} profile; it prices "
             f"{', '.join(PRICES[kind] + OPTIONAL[kind])}"
         )
-    prices = {op: _price(table.get(op), f"{source}: prices.{op}", op) for op in PRICES[kind]}
     not_published = raw.get("not_published", {})
     if not isinstance(not_published, dict) or not all(
         isinstance(v, str) and v.strip() for v in not_published.values()
