@@ -201,7 +201,7 @@ def test_break_even_solves_for_the_spike_density() -> None:
 # tag). A zero-width range is exact by the profile's definition ("included", compute only) or a
 # single published figure whose source says no range is published.
 W = 1e12  # pJ/s in a watt
-_LINK = (20.3, 20.3, 40.6, "derived")  # §3.3 DRAM 1300-2600 pJ / 64 bits, an analogy
+_LINK = (20.3, 1.4, 40.6, "derived")  # §3.3 DRAM 1300-2600 pJ / 64 bits; a 1.4 pJ/bit link
 _SRAM = {"sram_read_8kb": (10.0, 10.0, 20.0, "derived"), "sram_read_32kb": (20.0, 10.0, 100.0,
          "derived"), "sram_read_1mb": (100.0, 20.0, 100.0, "derived"),
          "dram_read": (1300.0, 1300.0, 2600.0, "derived")}  # fmt: skip
