@@ -415,6 +415,13 @@ def test_every_energy_in_the_report_is_count_times_a_profile_price(report: Path)
                 assert term["source"] == profiles[term["profile"]].prices[term["op"]].source
                 checked += 1
             assert c[key] == pytest.approx(sum(t["count"] * t["price_pj"] for t in c[side]))
+        for side in ("snn", "ann"):  # static power x the control period, a term of its own
+            terms = c["static"][f"{side}_static_terms"]
+            for term in terms:
+                assert term["price_pj"] == profiles[term["profile"]]["static_power"]
+                assert term["count"] == pytest.approx(1 / 60)
+            assert c["static"][f"{side}_static_pj"] == pytest.approx(
+                sum(t["count"] * t["price_pj"] for t in terms))  # fmt: skip
         snn_steps = data["snn"]["task"]["steps_per_episode"]
         assert c["snn_per_episode_pj"] == pytest.approx(c["snn_pj"] * snn_steps)
         assert c["ratio"] == pytest.approx(c["snn_pj"] / c["ann_pj"])
