@@ -12,6 +12,8 @@ The SNN's counts split where the work runs:
 
 The last layer's spikes leave the chip for the host's readout; the deployment's counts list
 them with the readout's fan-out, which is host work, so they are not chip synaptic operations.
+What crosses the host<->chip link per inference (the T x n1 input currents in, the last layer's
+spike flags out) is ``link_bits`` (:mod:`snnkart.contract.link`, the rule the backends count by).
 """
 
 from __future__ import annotations
