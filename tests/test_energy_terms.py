@@ -68,7 +68,7 @@ def test_placement_and_routing_by_hand(snn: SnnCounts) -> None:
     assert Placement.of((10, 20), 10, 1).hops_per_spike == (1 + 2, 0.0)
     # priced: the deployment's layer-1 spikes (with fill/drain) x the hops x the hop price
     loihi = load_profile("loihi1")
-    apart = type(loihi)(**{**vars(loihi), "neurons_per_core": 64, "cores_per_tile": 1})
+    apart = dataclasses.replace(loihi, neurons_per_core=64, cores_per_tile=1)  # one tile a layer
     drained = dataclasses.replace(snn, overhead_spikes=(5.0, 1.0))  # fill/drain spikes travel too
     routing = [t for t in snn_terms(drained, apart, load_profile("horowitz45_fp32")) if
                t.part == "routing"]  # fmt: skip
