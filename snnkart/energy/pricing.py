@@ -268,15 +268,16 @@ class Comparison:
 
     def break_even(self) -> dict[str, Any]:
         """How sparse the SNN must be to match the ANN: its energy is a fixed part (neuron
-        updates, host work) plus a part proportional to its spikes, so the break-even density
+        updates, the host link, host work) plus a part proportional to its spikes, so the break-even density
         (spikes relative to today's) solves ``fixed + d * variable = E_ann``."""
         e_ann = self.energies()[1]
         fixed = total(snn_terms(self.snn.scaled(0.0), self.chip, self.host))
         variable = total(snn_terms(self.snn, self.chip, self.host)) - fixed
         out: dict[str, Any] = {"ann_pj": e_ann, "fixed_pj": fixed, "per_density_pj": variable}
         if fixed >= e_ann:
-            out.update(density=None, reason="the clocked neuron updates and the host work alone "
-                       "cost at least as much as the ANN: no sparsity can break even")  # fmt: skip
+            out.update(density=None, reason="the clocked neuron updates, the host link and the "
+                       "host work alone cost at least as much as the ANN: no sparsity can break "
+                       "even")  # fmt: skip
             return out
         if variable <= 0:
             out.update(density=None, reason="the SNN's energy does not depend on its spikes "
