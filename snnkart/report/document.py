@@ -181,11 +181,6 @@ def _verdict(report: dict[str, Any]) -> list[str]:
                 note = "no sparsity breaks even"
             else:
                 note = f"wins below {be['density']:.2f}x today's spikes"
-            static = c["static"]
-            if static["ratio"] is not None and static["snn_static_pj"] > 0:
-                whose = "static power" if static["ann_static_pj"] else (
-                    "the chip's static power (the ANN target's is not published)")  # fmt: skip
-                note += f"; {_times(static['ratio'])} with {whose} over the control period"
             parts.append(f"{_times(c['ratio'])} the {label} on {c['ann_profile']} ({note})")
         lines.append(f"SNN on {chip}: " + "; ".join(parts) + ".")
     return lines
