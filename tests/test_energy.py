@@ -66,15 +66,18 @@ def test_counts_and_energy_of_a_hand_computed_network() -> None:
     # the pipeline's fill/drain per env step: 1 spike of layer 1 (2 synops), 4 + 2 updates
     assert snn.overhead_synops == (2.0, 0.0) and snn.overhead_neuron_updates == (4.0, 2.0)
     # chip: (6 + 2) synops x 23.6 + (12 + 6) neuron updates x 81 + (4 + 1) spikes x 1.7
-    #     = 188.8 + 1458 + 8.5 = 1655.3 pJ
+    #     = 188.8 + 1458 + 8.5 = 1655.3 pJ; both layers fit one core each in one tile: 0 hops
+    # link (float64): T 2 x 4 currents x 64 bits in + 2 x 2 spike flags out = 516 bits x 20.3
     # host (fp32): 16 MACs x 4.6 + 16 adds x 0.9 + 5 mults x 3.7 = 106.5 pJ
-    assert total(snn_terms(snn, loihi, fp32)) == pytest.approx(1655.3 + 106.5)
-    assert total(snn_terms(snn, loihi, sram)) == pytest.approx(1761.8 + 5.0 * (16 + 6))
+    assert snn.link_bits == (512.0, 4.0)
+    assert total(snn_terms(snn, loihi, fp32)) == pytest.approx(1655.3 + 516 * 20.3 + 106.5)
+    # + the host's 22 weights x 32 bits = 11 64-bit reads from the 8 KB array (88 bytes), 10 pJ
+    assert total(snn_terms(snn, loihi, sram)) == pytest.approx(1655.3 + 10474.8 + 106.5 + 110)
     ann = AnnCounts((3, 4, 2, 2))
     assert ann.macs == 24 and ann.parameters == 32
     # 24 MACs x 4.6 + (8 biases + 9 normalise + 1 argmax) x 0.9 + 3 x 3.7 = 137.7 pJ
     assert total(ann_terms(ann, fp32)) == pytest.approx(137.7)
-    assert total(ann_terms(ann, sram)) == pytest.approx(137.7 + 32 * 5.0)
+    assert total(ann_terms(ann, sram)) == pytest.approx(137.7 + 16 * 10.0)  # 32 x 32 bits
     nb = snn.neurobench()  # the first layer fed at each of the T = 2 steps, as NeuroBench counts
     assert nb["effective_acs"] == 6 and nb["effective_macs"] == 2 * 12 + 4
     assert nb["dense_ops"] == 2 * 12 + 2 * 8 + 4
@@ -194,50 +197,80 @@ def test_break_even_solves_for_the_spike_density() -> None:
     assert small.break_even()["density"] is None
 
 
-# Every built-in price as snn-nir-lava.md §3 gives it (pJ: value, low, high, tag).
+# Every built-in price as snn-nir-lava.md §3 gives it (pJ, static power pJ/s: value, low, high,
+# tag). A zero-width range is exact by the profile's definition ("included", compute only) or a
+# single published figure whose source says no range is published.
+W = 1e12  # pJ/s in a watt
+_LINK = (20.3, 1.4, 40.6, "derived")  # §3.3 DRAM 1300-2600 pJ / 64 bits; a 1.4 pJ/bit link
+_SRAM = {"sram_read_8kb": (10.0, 10.0, 20.0, "derived"), "sram_read_32kb": (20.0, 10.0, 100.0,
+         "derived"), "sram_read_1mb": (100.0, 20.0, 100.0, "derived"),
+         "dram_read": (1300.0, 1300.0, 2600.0, "derived")}  # fmt: skip
+_NO_MEMORY = dict.fromkeys(_SRAM, (0.0, 0.0, 0.0, "assumed"))
+_FP32 = {"mac": (4.6, 4.6, 4.6, "derived"), "add": (0.9, 0.9, 0.9, "derived"),
+         "mult": (3.7, 3.7, 3.7, "derived")}  # fmt: skip
+_ARM = (900.0, 300.0, 8600.0, "derived")  # §3.7 Degnan 0.9 nJ; GPU 0.3 / CPU 8.6 nJ
 REFERENCE_PRICES = {
-    ("loihi1", "synaptic_op"): (23.6, 23.6, 27.1, "pre-silicon"),  # §3.1 Table 2; §3.7 27.1
+    ("loihi1", "synaptic_op"): (23.6, 23.6, 35.5, "pre-silicon"),  # §3.1; SANA-FE 35.5 (§3.8)
     ("loihi1", "neuron_update"): (81.0, 52.0, 81.0, "pre-silicon"),  # §3.1 active / inactive
-    ("loihi1", "spike"): (1.7, 1.7, 5.7, "pre-silicon"),  # §3.1 within-tile + one 4.0 hop
-    ("loihi2", "synaptic_op"): (23.6, 0.067, 27.1, "assumed"),  # §3.2: none published
-    ("loihi2", "neuron_update"): (81.0, 0.067, 81.0, "assumed"),
-    ("loihi2", "spike"): (1.7, 0.0, 5.7, "assumed"),
-    ("spinnaker2", "synaptic_op"): (450.0, 450.0, 450.0, "measured"),  # §3.7
+    ("loihi1", "spike"): (1.7, 1.7, 180.3, "pre-silicon"),  # §3.1; SANA-FE 69.3 + 111
+    ("loihi1", "hop"): (3.5, 3.0, 4.2, "pre-silicon"),  # §3.1 3.0 / 4.0; SANA-FE 4.2
+    ("loihi1", "io_bit"): _LINK,
+    ("loihi1", "static_power"): (0.94 * W, 0.232 * W, 0.94 * W, "measured"),  # §3.8
+    ("loihi2", "synaptic_op"): (4.2, 0.067, 6.8, "derived"),  # §3.2/§3.8 Hala Point totals
+    ("loihi2", "neuron_update"): (
+        4.2,
+        0.148,
+        10.8,
+        "derived",
+    ),  # 0.067 x 52 / 23.6, no TOPS/W floor
+    ("loihi2", "spike"): (0.0, 0.0, 1.7, "assumed"),
+    ("loihi2", "io_bit"): _LINK,
+    ("loihi2", "static_power"): (0.232 * W, 0.232 * W, 0.282 * W, "measured"),  # §3.8
+    ("spinnaker2", "synaptic_op"): (450.0, 450.0, 450.0, "measured"),  # §3.7, single figure
     ("spinnaker2", "neuron_update"): (2190.0, 2190.0, 2190.0, "measured"),
     ("spinnaker2", "spike"): (0.0, 0.0, 0.0, "assumed"),
+    ("spinnaker2", "io_bit"): _LINK,
     ("spinnaker1", "synaptic_op"): (13300.0, 13300.0, 13300.0, "derived"),  # §3.7
     ("spinnaker1", "neuron_update"): (26000.0, 26000.0, 26000.0, "derived"),
     ("spinnaker1", "spike"): (0.0, 0.0, 0.0, "assumed"),
-    ("truenorth", "synaptic_op"): (26.0, 26.0, 26.0, "measured"),  # §3.1, §3.7 all-in
+    ("spinnaker1", "io_bit"): _LINK,
+    ("truenorth", "synaptic_op"): (26.0, 26.0, 26.0 * 11, "measured"),  # §3.1, §3.7 all-in
     ("truenorth", "neuron_update"): (0.0, 0.0, 0.0, "assumed"),
     ("truenorth", "spike"): (0.0, 0.0, 0.0, "assumed"),
-    ("horowitz45_fp32", "mac"): (4.6, 4.6, 4.6, "derived"),  # §3.3: 3.7 + 0.9
-    ("horowitz45_fp32", "add"): (0.9, 0.9, 0.9, "derived"),
-    ("horowitz45_fp32", "mult"): (3.7, 3.7, 3.7, "derived"),
-    ("horowitz45_fp32", "weight_read"): (0.0, 0.0, 0.0, "assumed"),
-    ("horowitz45_int8", "mac"): (0.23, 0.23, 0.23, "derived"),  # §3.3: 0.2 + 0.03
-    ("horowitz45_int8", "add"): (0.1, 0.03, 0.1, "derived"),
+    ("truenorth", "io_bit"): _LINK,
+    **{("horowitz45_fp32", op): v for op, v in {**_FP32, **_NO_MEMORY}.items()},  # §3.3
+    **{("horowitz45_fp32_sram", op): v for op, v in {**_FP32, **_SRAM}.items()},
+    ("horowitz45_int8", "mac"): (0.3, 0.3, 0.3, "derived"),  # §3.3: int8 mult + int32 add
+    ("horowitz45_int8", "add"): (0.1, 0.1, 0.1, "derived"),
     ("horowitz45_int8", "mult"): (0.2, 0.2, 3.1, "derived"),
-    ("horowitz45_int8", "weight_read"): (0.0, 0.0, 0.0, "assumed"),
-    ("horowitz45_fp32_sram", "mac"): (4.6, 4.6, 4.6, "derived"),
-    ("horowitz45_fp32_sram", "add"): (0.9, 0.9, 0.9, "derived"),
-    ("horowitz45_fp32_sram", "mult"): (3.7, 3.7, 3.7, "derived"),
-    ("horowitz45_fp32_sram", "weight_read"): (5.0, 5.0, 50.0, "derived"),  # 10-100 pJ / 64 bit
+    **{("horowitz45_int8", op): v for op, v in _SRAM.items()},
+    **{("arm_degnan2015", op): _ARM for op in ("mac", "add", "mult")},
+    **{("arm_degnan2015", op): v for op, v in _NO_MEMORY.items()},
 }
+NOT_PUBLISHED = {("loihi2", "hop"), ("truenorth", "hop"), ("truenorth", "static_power"),
+                 ("spinnaker1", "hop"), ("spinnaker1", "static_power"), ("spinnaker2", "hop"),
+                 ("spinnaker2", "static_power"), *((d, "static_power") for d in (
+                     "horowitz45_fp32", "horowitz45_fp32_sram", "horowitz45_int8",
+                     "arm_degnan2015"))}  # fmt: skip
 
 
 def test_builtin_profiles_carry_the_reference_prices() -> None:
-    seen = {}
+    seen, unpublished = {}, set()
     for name in BUILTIN:
         profile = load_profile(name)
         assert (ROOT / "hardware" / f"{name}.toml").resolve() == (
             ROOT / "snnkart/energy/builtin" / f"{name}.toml").resolve()  # fmt: skip
         for op, price in profile.prices.items():
             seen[(name, op)] = (price.value, price.low, price.high, price.tag)
+            if price.low == price.high and price.value > 0:  # a single figure says so
+                assert "no range published" in price.source, (name, op)
+        unpublished |= {(name, op) for op in profile.not_published}
     assert seen.keys() == REFERENCE_PRICES.keys()
+    assert unpublished == NOT_PUBLISHED
     for key, expected in REFERENCE_PRICES.items():
         assert seen[key][:3] == pytest.approx(expected[:3]), key
         assert seen[key][3] == expected[3], key
+    assert "28 nm" in load_profile("truenorth").technology
 
 
 GOOD = (ROOT / "snnkart/energy/builtin/loihi1.toml").read_text()
@@ -257,8 +290,19 @@ GOOD = (ROOT / "snnkart/energy/builtin/loihi1.toml").read_text()
          ["prices.synaptic_op.tag", "'rumour'", "measured"]),
         (lambda t: t.replace('source = "Davies', 'sauce = "Davies', 1),
          ["prices.synaptic_op.sauce", "unknown key"]),
+        (lambda t: t + '[not_published]\nhop = "no figure"\n',
+         ["hop: give [prices.hop] or", "exactly one of the two"]),
+        (lambda t: t[: t.index("[prices.io_bit]")],  # the file's last table
+         ["io_bit: give [prices.io_bit] or", "not_published.io_bit"]),
+        (lambda t: t.replace('unit = "W"', 'unit = "pJ"'),
+         ["prices.static_power.unit", "'pJ'", "uW, mW, W"]),
+        (lambda t: t.replace("hardware/2", "hardware/1"),
+         ["snnkart.hardware/1", "sram_read_8kb", "weight_bits"]),
+        (lambda t: t.replace("neurons_per_core = 1024\n", ""),
+         ["neurons_per_core: missing", "prices hop"]),
     ],
-    ids=["missing", "negative", "unit", "unknown-key", "tag", "price-key"],
+    ids=["missing", "negative", "unit", "unknown-key", "tag", "price-key", "hop-twice",
+         "io-bit-neither", "power-unit", "schema-v1", "placement"],
 )  # fmt: skip
 def test_bad_profiles_are_refused_with_file_key_and_fix(edit: Any, fragments: list[str],
                                                         tmp_path: Path) -> None:  # fmt: skip
@@ -384,6 +428,13 @@ def test_every_energy_in_the_report_is_count_times_a_profile_price(report: Path)
                 assert term["source"] == profiles[term["profile"]].prices[term["op"]].source
                 checked += 1
             assert c[key] == pytest.approx(sum(t["count"] * t["price_pj"] for t in c[side]))
+        for side in ("snn", "ann"):  # static power x the control period, a term of its own
+            terms = c["static"][f"{side}_static_terms"]
+            for term in terms:
+                assert term["price_pj"] == profiles[term["profile"]]["static_power"]
+                assert term["count"] == pytest.approx(1 / 60)
+            assert c["static"][f"{side}_static_pj"] == pytest.approx(
+                sum(t["count"] * t["price_pj"] for t in terms))  # fmt: skip
         snn_steps = data["snn"]["task"]["steps_per_episode"]
         assert c["snn_per_episode_pj"] == pytest.approx(c["snn_pj"] * snn_steps)
         assert c["ratio"] == pytest.approx(c["snn_pj"] / c["ann_pj"])

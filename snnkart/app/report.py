@@ -15,17 +15,26 @@ from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.records import Reading, RecordError, from_data, to_data
 from snnkart.energy.counts import AnnCounts, SnnCounts
-from snnkart.energy.pricing import Comparison, ann_terms, breakdown, snn_terms, total
+from snnkart.energy.pricing import (
+    Comparison,
+    ann_terms,
+    breakdown,
+    not_published,
+    placement,
+    snn_terms,
+    total,
+)
 from snnkart.energy.profiles import (
     DEFAULT_CHIPS,
     DEFAULT_DIGITAL,
     Profile,
     load_profile,
+    memory_row,
 )
 from snnkart.errors import ReportError
 from snnkart.report.study_record import STUDY, StudyRecord
 
-REPORT_SCHEMA = "snnkart/report/v1"
+REPORT_SCHEMA = "snnkart/report/v2"
 DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
@@ -64,7 +73,7 @@ def _profiles(
 
 def _memory_first(digital: list[Profile]) -> list[Profile]:
     """The memory-inclusive digital profiles first: the fair baseline leads the sensitivity."""
-    return sorted(digital, key=lambda p: p["weight_read"] == 0)
+    return sorted(digital, key=lambda p: not p.prices_memory)
 
 
 def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, Any]]:
@@ -125,6 +134,7 @@ def _snn_section(snn: SnnCounts, record: DeployRecord) -> dict[str, Any]:
                 "neuron_updates": list(snn.overhead_neuron_updates),
             },
             "host_ops": [vars(op) for op in snn.host],
+            "link_bits": {"host_to_chip": snn.link_bits[0], "chip_to_host": snn.link_bits[1]},
         },
         "neurobench": snn.neurobench(),
         "deployed": snn.deployed(),
@@ -157,11 +167,21 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                 e_snn = total(s_terms)
                 a_terms = ann_terms(ann, dig)
                 e_ann = total(a_terms)
+                if e_ann <= 0:
+                    raise ReportError(
+                        f"profile {dig.name} prices the ANN at 0 pJ (every price it uses is 0), "
+                        "so the SNN/ANN ratio is undefined; give it non-zero prices"
+                    )
                 cmp = Comparison(snn, ann, chip, host or dig, dig)
+                where = placement(snn, chip)
                 rows.append({
                     "snn_profile": chip.name, "host_profile": (host or dig).name, "ann": key,
                     "ann_profile": dig.name, "snn_pj": e_snn, "ann_pj": e_ann,
-                    "ratio": e_snn / e_ann if e_ann else None,
+                    "ratio": e_snn / e_ann,
+                    "memory": _memory(snn, ann, host or dig, dig),
+                    "placement": where.as_dict() if where else None,
+                    "static": cmp.with_static(),
+                    "not_published": not_published(chip, host or dig, dig),
                     "snn_per_episode_pj": e_snn * snn.steps_per_episode,
                     "ann_per_episode_pj": e_ann * task["steps_per_episode"] if task else None,
                     "snn_per_return_pj": _per_return(e_snn * snn.steps_per_episode, snn_return),
@@ -174,6 +194,14 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                     "break_even": cmp.break_even(),
                 })  # fmt: skip
     return rows
+
+
+def _memory(snn: SnnCounts, ann: AnnCounts, host: Profile, digital: Profile) -> dict[str, Any]:
+    """Each side's weight footprint and the memory array it is read from (its own row)."""
+    snn_bytes = snn.net.host_parameters * host.weight_bits / 8
+    ann_bytes = ann.parameters * digital.weight_bits / 8
+    return {"snn_host_weight_bytes": snn_bytes, "snn_host_array": memory_row(snn_bytes),
+            "ann_weight_bytes": ann_bytes, "ann_array": memory_row(ann_bytes)}  # fmt: skip
 
 
 def _per_return(energy: float, mean_return: float) -> float | None:

@@ -26,6 +26,7 @@ from snnkart.backends.base import Arithmetic, SpikeCounts, WindowResult, split_w
 from snnkart.backends.host import HostCodec
 from snnkart.backends.loading import LoadedPolicy, as_policy
 from snnkart.backends.quantize import FixedPointNetwork
+from snnkart.contract.link import word_bits
 from snnkart.errors import BackendError
 
 
@@ -77,12 +78,16 @@ class Backend:
 
     def step(self, obs: np.ndarray) -> tuple[WindowResult, np.ndarray]:
         engine = self.engine
-        raster = engine.window(self.codec.encode(obs))
+        current = self.codec.encode(obs)
+        raster = engine.window(current)
         window = split_window(
             raster, self.chain.sizes, engine.steps, engine.depth, engine.payload_bits
         )
-        self.counts.add(window, self.chain.fan_out)
         last = window.logical[:, -self.chain.sizes[-1] :]
+        # the link (snnkart.contract.link): the currents sent in, the last layer's spikes out
+        window.host_to_chip_bits = current.size * word_bits(self.arithmetic)
+        window.chip_to_host_bits = last.size * max(1, engine.payload_bits)
+        self.counts.add(window, self.chain.fan_out)
         return window, self.codec.readout_spikes(last)
 
     def normalise(self, obs: np.ndarray) -> np.ndarray:

@@ -55,8 +55,8 @@ class SpikeCounts:
     policy's logical steps, and apart from them the pipeline's fill/drain overhead.
 
     Also kept, in memory only (not in :meth:`as_dict`, so ``deploy.json`` is unchanged): the
-    message payload bits per layer and the host<->chip I/O bits; no engine of today has
-    graded spikes or a modelled host link, so they stay 0."""
+    message payload bits per layer (0: no engine of today has graded spikes) and the
+    host<->chip I/O bits the backend sent and received (:mod:`snnkart.contract.link`)."""
 
     n_layers: int = 2
     spikes: np.ndarray = field(init=False)

@@ -12,6 +12,8 @@ The SNN's counts split where the work runs:
 
 The last layer's spikes leave the chip for the host's readout; the deployment's counts list
 them with the readout's fan-out, which is host work, so they are not chip synaptic operations.
+What crosses the host<->chip link per inference (the T x n1 input currents in, the last layer's
+spike flags out) is ``link_bits`` (:mod:`snnkart.contract.link`, the rule the backends count by).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from snnkart.contract.deploy_record import Counts, DeployRecord, StepCounts
+from snnkart.contract.link import link_bits
 from snnkart.errors import ReportError
 
 
@@ -81,10 +84,14 @@ class Network:
     @property
     def parameters(self) -> int:
         """Weights and biases: first layer (host), the chip's layers, readout (host)."""
+        return self.host_parameters + self.chip_synapses + sum(self.sizes[1:])
+
+    @property
+    def host_parameters(self) -> int:
+        """The weights and biases the host keeps and reads: the first layer's and the readout's."""
         n1, last = self.sizes[0], self.sizes[-1]
-        chip = self.chip_synapses + sum(self.sizes[1:])
         readout = (last * self.n_out + self.n_out) if self.readout else 0
-        return self.n_in * n1 + n1 + chip + readout
+        return self.n_in * n1 + n1 + readout
 
 
 @dataclass(frozen=True)
@@ -146,6 +153,11 @@ def host_ops(net: Network, fixed_point: bool = False) -> list[HostOp]:
     return ops
 
 
+def _link(net: Network, precision: str) -> tuple[float, float]:
+    bits_in, bits_out = link_bits(net.num_steps, net.sizes[0], net.sizes[-1], precision)
+    return float(bits_in), float(bits_out)
+
+
 @dataclass(frozen=True)
 class SnnCounts:
     """The spiking policy's counts per inference, averaged over a deployment's env steps."""
@@ -160,18 +172,21 @@ class SnnCounts:
     overhead_synops: tuple[float, ...]
     overhead_neuron_updates: tuple[float, ...]
     host: tuple[HostOp, ...] = field(default=())
+    link_bits: tuple[float, float] = (0.0, 0.0)
+    """Bits over the host<->chip link per inference, in and out (:mod:`snnkart.contract.link`)."""
 
     @classmethod
     def of_deploy(cls, record: DeployRecord) -> SnnCounts:
         """A deployment's counts, per env step (its episodes, or one if it lists none)."""
         return cls.measured(
-            Network.of_deploy(record), record.counts, len(record.episodes) or 1,
-            fixed_point=record.precision == "fixed",
-        )  # fmt: skip
+            Network.of_deploy(record), record.counts, len(record.episodes) or 1, record.precision
+        )
 
     @classmethod
-    def measured(cls, net: Network, c: Counts, episodes: int, fixed_point: bool) -> SnnCounts:
-        """Counts measured over ``c.env_steps`` env steps of ``episodes`` episodes, per step."""
+    def measured(cls, net: Network, c: Counts, episodes: int, precision: str) -> SnnCounts:
+        """Counts measured over ``c.env_steps`` env steps of ``episodes`` episodes, per step,
+        of a deployment in ``precision`` (``fixed``, ``float``, ``float32``, ``float64``)."""
+        fixed_point = precision == "fixed"
         n = c.env_steps
         if n < 1:
             raise ReportError("the deployment ran no env step; deploy at least one episode")
@@ -195,6 +210,7 @@ class SnnCounts:
             overhead_synops=per_step(over.synops if over else None, chip_only=True),
             overhead_neuron_updates=per_step(over.neuron_updates if over else None),
             host=tuple(host_ops(net, fixed_point=fixed_point)),
+            link_bits=_link(net, precision),
         )
 
     @classmethod
@@ -221,6 +237,7 @@ class SnnCounts:
             overhead_synops=chip(run.overhead_synops_per_step),
             overhead_neuron_updates=tuple(run.overhead_neuron_updates_per_step),
             host=tuple(host_ops(net, fixed_point=run.precision == "fixed")),
+            link_bits=_link(net, run.precision),
         )
 
     def scaled(self, density: float) -> SnnCounts:
@@ -232,7 +249,7 @@ class SnnCounts:
         return SnnCounts(
             self.net, self.env_steps, self.episodes, s(self.spikes), s(self.synops),
             self.neuron_updates, s(self.overhead_spikes), s(self.overhead_synops),
-            self.overhead_neuron_updates, self.host,
+            self.overhead_neuron_updates, self.host, self.link_bits,
         )  # fmt: skip
 
     @property
@@ -282,6 +299,7 @@ class SnnCounts:
         return {
             "parameters": net.parameters,
             "parameter_bytes_fp32": 4 * net.parameters,
+            "host_parameters": net.host_parameters,
             "chip_weight_bytes_int8": net.chip_synapses,
             "state_variables": 2 * net.neurons,
         }

@@ -14,6 +14,8 @@ PART_COLOURS = {
     "synaptic ops": "#1f77b4",
     "neuron updates": "#ff7f0e",
     "spikes": "#2ca02c",
+    "routing": "#17becf",
+    "host link": "#e377c2",
     "host compute": "#9467bd",
     "memory": "#8c564b",
 }
@@ -95,7 +97,8 @@ def sensitivity(rows: Sequence[dict[str, Any]], curve: Sequence[tuple[float, flo
     left.axvline(base, color="black", linewidth=1)
     left.axvline(1.0, color="#d62728", linestyle="--", linewidth=1)
     left.set_xscale("log")
-    roles = {"chip": "SNN chip", "host": "SNN host", "digital": "ANN"}
+    roles = {"chip": "SNN chip", "host": "SNN host", "digital": "ANN",
+             "host+digital": "ANN + SNN host"}  # fmt: skip
     left.set_yticks(
         y, [f"{roles[r['side']]} ({r['profile']}): {r['op']}" for r in rows], fontsize=8
     )
