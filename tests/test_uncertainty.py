@@ -104,6 +104,10 @@ def test_a_shared_price_is_drawn_once_for_both_sides() -> None:
         assert out["ratio"][key] == pytest.approx(expected, rel=1e-12)
     assert out["shared"] == [f"on-chip SRAM read, {base.technology}"]
     assert out["snn_pj"]["p95"] > 3 * out["snn_pj"]["p05"]  # the energies themselves do move
+    # one at a time, the shared read moves on both sides at once: the ratio does not move
+    [row] = out["one_at_a_time"]
+    assert row["prices"] == [f"host45.{read}", f"ann45.{read}"]
+    assert (row["ratio_low"], row["ratio_high"]) == pytest.approx((expected, expected), rel=1e-12)
     # the ANN on another technology: its read is a quantity of its own, and the ratio spreads
     apart = joint(s_terms, a_terms, (chip, host, dataclasses.replace(dig, technology="28 nm")))
     assert apart["ratio"]["p95"] > 2 * apart["ratio"]["p05"] and apart["shared"] == []
@@ -122,8 +126,8 @@ def test_log_uniform_above_a_decade_uniform_below() -> None:
     assert distribution(_price(1.0, 10.5)) == "log-uniform"
     assert distribution(_price(0.0, 50.0)) == "uniform"  # a range from 0 cannot be log-uniform
     assert distribution(_price(3.0, 3.0)) == "fixed"
-    draws = [Draw("p", "log", 0.1, 1000.0, "log-uniform", "a"),
-             Draw("p", "lin", 0.0, 1000.0, "uniform", "b")]  # fmt: skip
+    draws = [Draw("p", "log", 1.0, 0.1, 1000.0, "log-uniform", "a"),
+             Draw("p", "lin", 1.0, 0.0, 1000.0, "uniform", "b")]  # fmt: skip
     x = sample_prices(draws, 20_000, seed=1)
     assert x.shape == (20_000, 2) and x.min() >= 0.0 and x.max() <= 1000.0
     # log-uniform: the median is the geometric mean, each decade holds a quarter

@@ -75,6 +75,7 @@ class Draw:
 
     profile: str
     op: str
+    value: float
     low: float
     high: float
     distribution: str  # fixed, uniform or log-uniform
@@ -89,7 +90,7 @@ class Draw:
         return self.low + (self.high - self.low) * u
 
     def as_dict(self) -> dict[str, Any]:
-        return {"profile": self.profile, "op": self.op, "low_pj": self.low,
+        return {"profile": self.profile, "op": self.op, "pj": self.value, "low_pj": self.low,
                 "high_pj": self.high, "distribution": self.distribution,
                 "quantity": self.quantity}  # fmt: skip
 
@@ -115,7 +116,7 @@ def _draws(profiles: dict[str, Profile], keys: Iterable[tuple[str, str]]) -> lis
     out = []
     for name, op in keys:
         price = profiles[name].prices[op]
-        out.append(Draw(name, op, price.low, price.high, distribution(price),
+        out.append(Draw(name, op, price.value, price.low, price.high, distribution(price),
                         quantity(profiles[name], op)))  # fmt: skip
     return out
 
@@ -184,6 +185,7 @@ def joint(snn: Sequence[Term], ann: Sequence[Term], profiles: Iterable[Profile],
         "snn_pj": _spread(e_snn),
         "ann_pj": _spread(e_ann),
         "shared": _shared(draws, c_snn, c_ann),
+        "one_at_a_time": one_at_a_time(draws, c_snn, c_ann),
         "prices": [d.as_dict() for d in draws if d.distribution != "fixed"],
     }
 
@@ -193,6 +195,32 @@ def _shared(draws: Sequence[Draw], c_snn: np.ndarray, c_ann: np.ndarray) -> list
     snn = {d.quantity for d, c in zip(draws, c_snn, strict=True) if c and d.distribution != "fixed"}
     ann = {d.quantity for d, c in zip(draws, c_ann, strict=True) if c and d.distribution != "fixed"}
     return sorted(snn & ann)
+
+
+def one_at_a_time(draws: Sequence[Draw], c_snn: np.ndarray,
+                  c_ann: np.ndarray) -> list[dict[str, Any]]:  # fmt: skip
+    """Each uncertain quantity alone at the low and the high end of its range (a shared one on
+    both sides at once), every other price at its value: the ratio at either end, the widest
+    swing first (the single input that moves the verdict most)."""
+    central = np.array([d.value for d in draws])
+    rows = []
+    for q in sorted({d.quantity for d in draws if d.distribution != "fixed"}):
+        moved = [i for i, d in enumerate(draws) if d.quantity == q]
+        ends = np.tile(central, (2, 1))
+        for i in moved:
+            ends[:, i] = draws[i].at(np.array([0.0, 1.0]))
+        e_snn, e_ann = ends @ c_snn, ends @ c_ann
+        ratios = [float(a / b) if b > 0 else None for a, b in zip(e_snn, e_ann, strict=True)]
+        rows.append({"quantity": q, "prices": [f"{draws[i].profile}.{draws[i].op}" for i in moved],
+                     "ratio_low": ratios[0], "ratio_high": ratios[1]})  # fmt: skip
+    return sorted(rows, key=_swing, reverse=True)
+
+
+def _swing(row: dict[str, Any]) -> float:
+    lo, hi = row["ratio_low"], row["ratio_high"]
+    if lo is None or hi is None or min(lo, hi) <= 0:
+        return float("inf") if lo != hi else 0.0
+    return abs(float(np.log(hi / lo)))
 
 
 def method() -> dict[str, Any]:
@@ -297,8 +325,9 @@ def break_even_steps(cmp: Comparison, steps_max: int = STEPS_MAX) -> dict[str, A
                      for s in curve},
     }  # fmt: skip
     if excess(1) >= 0:
-        return {**out, "num_steps": None, "largest": None, "reason": "even at T = 1 the SNN "
-                "costs at least as much as the ANN: no T breaks even"}  # fmt: skip
+        at_one = _times(out["ratio_at"]["1"])
+        return {**out, "num_steps": None, "largest": None, "reason": f"even at T = 1 the SNN "
+                f"costs {at_one} the ANN: no T breaks even"}  # fmt: skip
     if excess(steps_max) < 0:
         return {**out, "num_steps": None, "largest": steps_max, "reason": "the SNN costs less "
                 f"at every T up to {steps_max}"}  # fmt: skip
@@ -337,13 +366,20 @@ def break_even_width(cmp: Comparison, widths: Sequence[int] = WIDTHS) -> dict[st
         "crossings": crossings,
         "cheaper": [{"from": a, "to": b} for a, b in cheaper],
         "ratio_at": {str(w): _ratio(at_width(cmp, w)) for w in shown},
-        "reason": _width_reason(cheaper, grid),
+        "reason": _width_reason(cheaper, grid, _ratio(at_width(cmp, grid[-1]))),
     }
 
 
-def _width_reason(cheaper: list[list[int | None]], grid: list[int]) -> str:
+def _times(ratio: float | None) -> str:
+    return "an undefined multiple of" if ratio is None else f"{ratio:.3g}x"
+
+
+def _width_reason(cheaper: list[list[int | None]], grid: list[int], limit: float | None) -> str:
     if not cheaper:
-        return f"no width from {grid[0]} to {grid[-1]} breaks even at today's firing rates"
+        return (
+            f"no width from {grid[0]} to {grid[-1]} breaks even at today's firing rates (at "
+            f"{grid[-1]} the SNN costs {_times(limit)} the ANN)"
+        )
     spans = [f"from {a} to {b}" if b is not None else f"from {a} up (checked to {grid[-1]})"
              for a, b in cheaper]  # fmt: skip
     return "the SNN costs less than the ANN at widths " + " and ".join(spans)
