@@ -181,6 +181,15 @@ def test_break_even_in_width_against_a_hand_computation() -> None:
         dataclasses.replace(cmp, chip=_priced(cmp.chip, "c", synaptic_op=(0.5, 0.5)))
     )
     assert wins["cheaper"] == [{"from": 1, "to": None}] and wins["crossings"] == []
+    # clocked neuron updates only (4 pJ): E_snn = 4 x (W + n2) x (T + 1) = 12 (W + n2), linear,
+    # against the ANN's quadratic MACs: equal at W = 28 (n2 = 14: 504 pJ each), the SNN costs
+    # less from W = 29 (n2 = 14: 516 < 521 pJ) up
+    clocked = _linear({"neuron_update": (4.0, 4.0)}, 1.0, AnnCounts((3, 4, 2, 2)))
+    late = break_even_width(clocked)
+    assert late["cheaper"] == [{"from": 29, "to": None}] and late["crossings"] == [
+        pytest.approx(28.0)
+    ]
+    assert "from 29 up" in late["reason"]
 
 
 def _terms(rows: list[dict[str, Any]]) -> list[Term]:
