@@ -14,18 +14,11 @@ import pytest
 
 from snnkart.app.report import build_report
 from snnkart.contract.deploy_record import DeployRecord
+from snnkart.energy.break_even import break_even_steps, break_even_width, rescaled
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import Comparison, Term, ann_terms, snn_terms
 from snnkart.energy.profiles import Price, Profile, load_profile
-from snnkart.energy.uncertainty import (
-    Draw,
-    break_even_steps,
-    break_even_width,
-    distribution,
-    joint,
-    rescaled,
-    sample_prices,
-)
+from snnkart.energy.uncertainty import Draw, distribution, joint, sample_prices
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORD = ROOT / "tests/data/records/deploy-nir-ref-fixed.json"
@@ -107,6 +100,7 @@ def test_a_shared_price_is_drawn_once_for_both_sides() -> None:
     # one at a time, the shared read moves on both sides at once: the ratio does not move
     [row] = out["one_at_a_time"]
     assert row["prices"] == [f"host45.{read}", f"ann45.{read}"]
+    assert row["sides"] == ["SNN", "ANN"]
     assert (row["ratio_low"], row["ratio_high"]) == pytest.approx((expected, expected), rel=1e-12)
     # the ANN on another technology: its read is a quantity of its own, and the ratio spreads
     apart = joint(s_terms, a_terms, (chip, host, dataclasses.replace(dig, technology="28 nm")))

@@ -14,6 +14,7 @@ from typing import Any
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.records import Reading, RecordError, from_data, to_data
+from snnkart.energy.break_even import break_even
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import Comparison, ann_terms, breakdown, snn_terms, total
 from snnkart.energy.profiles import (
@@ -22,7 +23,7 @@ from snnkart.energy.profiles import (
     Profile,
     load_profile,
 )
-from snnkart.energy.uncertainty import break_even, joint, method
+from snnkart.energy.uncertainty import joint, method
 from snnkart.errors import ReportError
 from snnkart.report.study_record import STUDY, StudyRecord
 
