@@ -205,3 +205,18 @@ def test_the_report_carries_each_pairs_interval_and_break_even() -> None:
         assert {"density", "num_steps", "width"} <= set(c["break_even"])
     assert report["sensitivity"] and report["sensitivity"][0]["rows"]  # the tornado stays
     json.dumps(report, allow_nan=False)
+
+
+def test_an_ann_priced_at_zero_gives_undefined_ratios_not_a_traceback() -> None:
+    snn = _tiny()
+    ann = AnnCounts((3, 4, 2, 2))
+    free = _priced(load_profile("horowitz45_fp32"), "free")
+    chip = _priced(load_profile("loihi2"), "chip", synaptic_op=(1.0, 100.0))
+    cmp = Comparison(snn, ann, chip, free, free)
+    out = joint(snn_terms(snn, chip, free), ann_terms(ann, free), (chip, free))
+    assert out["ratio"] == {"median": None, "p05": None, "p95": None}
+    assert out["p_snn_cheaper"] == 0.0 and out["ann_pj"]["p95"] == 0.0
+    steps, width = break_even_steps(cmp), break_even_width(cmp)
+    assert steps["num_steps"] is None and "undefined multiple" in steps["reason"]
+    assert width["cheaper"] == [] and set(width["ratio_at"].values()) == {None}
+    json.dumps([out, steps, width], allow_nan=False)

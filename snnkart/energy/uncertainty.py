@@ -131,7 +131,8 @@ def sample_prices(draws: Sequence[Draw], samples: int, seed: int) -> np.ndarray:
 
 
 def _spread(x: np.ndarray) -> dict[str, float | None]:
-    lo, mid, hi = np.percentile(x, [5.0, 50.0, 95.0])
+    with np.errstate(invalid="ignore"):  # a ratio over an ANN priced at 0 is infinite
+        lo, mid, hi = np.percentile(x, [5.0, 50.0, 95.0])
     return {"median": _finite(mid), "p05": _finite(lo), "p95": _finite(hi)}
 
 
