@@ -220,3 +220,17 @@ def test_an_ann_priced_at_zero_gives_undefined_ratios_not_a_traceback() -> None:
     assert steps["num_steps"] is None and "undefined multiple" in steps["reason"]
     assert width["cheaper"] == [] and set(width["ratio_at"].values()) == {None}
     json.dumps([out, steps, width], allow_nan=False)
+
+
+def test_rescaled_counts_keep_todays_firing_rates_and_recount_the_host() -> None:
+    snn = SnnCounts.of_deploy(DeployRecord.read(RECORD))  # 64-64, T = 8, fixed point
+    net = snn.net
+    small = rescaled(snn, num_steps=4, sizes=(32, 16))
+    assert small.firing_rates() == pytest.approx(snn.firing_rates())
+    assert small.neuron_updates == (32 * 4, 16 * 4)
+    assert small.overhead_neuron_updates == (32.0, 16.0)  # one fill/drain step, whatever T
+    # layer 1's synaptic ops: its spikes x the new fan-out (16)
+    assert small.synops[0] == pytest.approx(small.spikes[0] * 16) and small.synops[1] == 0
+    host = {op: sum(h.count for h in small.host if h.op == op) for op in ("mac", "mult")}
+    # first layer n_in x 32, readout 16 x n_out | /std n_in, fixed-point scaling 32, /T 16
+    assert host == {"mac": net.n_in * 32 + 16 * net.n_out, "mult": net.n_in + 32 + 16}

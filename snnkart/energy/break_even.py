@@ -35,7 +35,8 @@ each change of sign is then solved to the neuron by bisection."""
 def rescaled(counts: SnnCounts, num_steps: int | None = None,
              sizes: Sequence[int] | None = None) -> SnnCounts:  # fmt: skip
     """The same policy at ``num_steps`` SNN steps and ``sizes`` neurons per layer, at today's
-    firing rates (the module's scaling laws); the host work recounted for the new shape."""
+    firing rates (the module's scaling laws); the host work (if counted) recounted for the new
+    shape, in fixed point if it was."""
     net = counts.net
     new_sizes = tuple(sizes) if sizes is not None else net.sizes
     steps = net.num_steps if num_steps is None else num_steps
@@ -62,7 +63,7 @@ def rescaled(counts: SnnCounts, num_steps: int | None = None,
         overhead_spikes=per(counts.overhead_spikes, n),
         overhead_synops=per(counts.overhead_synops, [x * f for x, f in zip(n, fan, strict=True)]),
         overhead_neuron_updates=per(counts.overhead_neuron_updates, n),
-        host=tuple(host_ops(new_net, fixed_point=fixed_point)),
+        host=tuple(host_ops(new_net, fixed_point=fixed_point)) if counts.host else (),
     )
 
 
