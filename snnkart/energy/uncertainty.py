@@ -219,10 +219,11 @@ def method() -> dict[str, Any]:
     return {
         "samples": SAMPLES,
         "seed": SEED,
-        "rule": f"Monte Carlo, Latin hypercube; each price drawn from its range: log-uniform where high / low > "
-        f"{LOG_UNIFORM_ABOVE:g}, otherwise uniform (and from a range starting at 0), fixed where "
-        "low = high; a shared quantity is drawn once per sample (one quantile of each side's "
-        "range); interval: the 5th-95th percentile of the SNN/ANN ratio",
+        "rule": "Monte Carlo (Latin hypercube), each price drawn from its range: log-uniform "
+        f"where high / low > {LOG_UNIFORM_ABOVE:g}, otherwise uniform (and from a range that "
+        "starts at 0), fixed where low = high; a shared quantity drawn once per sample (one "
+        "quantile of each side's range); the interval is the 5th-95th percentile of the SNN/ANN "
+        "ratio, P(SNN cheaper) the share of samples in which the SNN costs less",
         "shared": dict(SHARED),
         "shared_when": "the same operation on digital profiles of the same technology",
     }
