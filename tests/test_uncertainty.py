@@ -41,15 +41,13 @@ def _tiny() -> SnnCounts:
     return SnnCounts.of_deploy(DeployRecord.from_json(json.dumps(data)))
 
 
-def _priced(profile: Profile, name: str, technology: str | None = None,
-            **ranges: tuple[float, float]) -> Profile:  # fmt: skip
+def _priced(profile: Profile, name: str, **ranges: tuple[float, float]) -> Profile:
     """``profile`` renamed, every price fixed at 0 except ``op=(low, high)`` (value = low)."""
     prices = {op: dataclasses.replace(p, value=0.0, low=0.0, high=0.0)
               for op, p in profile.prices.items()}  # fmt: skip
     for op, (low, high) in ranges.items():
         prices[op] = dataclasses.replace(prices[op], value=low, low=low, high=high)
-    return dataclasses.replace(profile, name=name, prices=prices,
-                               technology=profile.technology if technology is None else technology)  # fmt: skip
+    return dataclasses.replace(profile, name=name, prices=prices)
 
 
 def _memory_op(ann: AnnCounts, digital: Profile) -> str:
