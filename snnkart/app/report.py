@@ -14,6 +14,7 @@ from typing import Any
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.records import Reading, RecordError, from_data, to_data
+from snnkart.energy.break_even import break_even
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import (
     Comparison,
@@ -31,10 +32,13 @@ from snnkart.energy.profiles import (
     load_profile,
     memory_row,
 )
+from snnkart.energy.uncertainty import joint, method
 from snnkart.errors import ReportError
 from snnkart.report.study_record import STUDY, StudyRecord
 
 REPORT_SCHEMA = "snnkart/report/v2"
+"""v2: each comparison's ``uncertainty`` and its break-even in T and width; the top-level
+``uncertainty`` says how the prices were sampled."""
 DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
@@ -158,7 +162,9 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                  snn_return: float) -> list[dict[str, Any]]:  # fmt: skip
     """Every SNN profile against every ANN on every digital profile: energy per inference, per
     episode and per unit of return (None when the mean return is not positive, or for an ANN
-    that was not run). The SNN's host work is priced on ``host``, else on the ANN's profile."""
+    that was not run), the ratio with every price range sampled together, and the break-even
+    in spike density, T and width. The SNN's host work is priced on ``host``, else on the ANN's
+    profile."""
     rows = []
     for chip in chips:
         for key, (ann, task) in anns.items():
@@ -191,7 +197,8 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                     "snn_breakdown_pj": breakdown(s_terms), "ann_breakdown_pj": breakdown(a_terms),
                     "snn_terms": [t.as_dict() for t in s_terms],
                     "ann_terms": [t.as_dict() for t in a_terms],
-                    "break_even": cmp.break_even(),
+                    "break_even": break_even(cmp),
+                    "uncertainty": joint(s_terms, a_terms, (chip, host or dig, dig)),
                 })  # fmt: skip
     return rows
 
@@ -328,6 +335,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         "comparisons": _comparisons(
             snn, anns, chips, digital, host_profile, record.summary.mean_return
         ),
+        "uncertainty": method(),
         "sensitivity": [
             {
                 "snn_profile": c.name,
