@@ -86,6 +86,8 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, 
             f"--ann {ann_dir} was trained on track {trained['name']}, the deployment drove "
             f"{env.track}; compare on the same track"
         )
+    from snnkart.eval.ann_int8 import int8_task
+
     gym_env = run.config.make_env(track=run.track)
     episodes = len(record.episodes) or 1
     try:
@@ -100,6 +102,8 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, 
         "episodes": episodes, "first_seed": record.first_seed,
         "success_rate": summary.success_rate, "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return, "steps_per_episode": steps / episodes,
+        "int8": int8_task(run, lambda: run.config.make_env(track=run.track),
+                          record.first_seed, episodes),
     }  # fmt: skip
     return AnnCounts(widths, run.config.action_mode, "ANN run"), task
 
@@ -149,10 +153,13 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
     """Every SNN profile against every ANN on every digital profile: energy per inference, per
     episode and per unit of return (None when the mean return is not positive, or for an ANN
     that was not run). The SNN's host work is priced on ``host``, else on the ANN's profile."""
+    from snnkart.eval.ann_int8 import task_on
+
     rows = []
     for chip in chips:
-        for key, (ann, task) in anns.items():
+        for key, (ann, float_task) in anns.items():
             for dig in digital:
+                task = task_on(float_task, dig.name)  # int8 datapath: the int8 ANN's, measured
                 s_terms = snn_terms(snn, chip, host or dig)
                 e_snn = total(s_terms)
                 a_terms = ann_terms(ann, dig)
@@ -161,6 +168,8 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                 rows.append({
                     "snn_profile": chip.name, "host_profile": (host or dig).name, "ann": key,
                     "ann_profile": dig.name, "snn_pj": e_snn, "ann_pj": e_ann,
+                    "ann_success_rate": task["success_rate"] if task else None,
+                    "ann_success": _ann_success(task, float_task),
                     "ratio": e_snn / e_ann if e_ann else None,
                     "snn_per_episode_pj": e_snn * snn.steps_per_episode,
                     "ann_per_episode_pj": e_ann * task["steps_per_episode"] if task else None,
@@ -174,6 +183,15 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                     "break_even": cmp.break_even(),
                 })  # fmt: skip
     return rows
+
+
+def _ann_success(task: dict[str, Any] | None, float_task: dict[str, Any] | None) -> str:
+    """Where the ANN's success on a profile comes from."""
+    if task is None:
+        return "not run"
+    if task is not float_task:
+        return "measured: the ANN quantised to int8, on the deployment's episodes"
+    return "measured: the float ANN, on the deployment's episodes"
 
 
 def _per_return(energy: float, mean_return: float) -> float | None:

@@ -91,9 +91,17 @@ def headline(report: dict[str, Any]) -> list[dict[str, str]]:
             "SNN µJ/return": _uj(c["snn_per_return_pj"]),
             "ANN µJ/return": _uj(c["ann_per_return_pj"]),
             "SNN success": _pct(snn_task["success_rate"]),
-            "ANN success": _pct(task["success_rate"]) if task else "not run",
+            "ANN success": _ann_success(c, task),
         })  # fmt: skip
     return rows
+
+
+def _ann_success(row: dict[str, Any], task: dict[str, Any] | None) -> str:
+    """The ANN's success on the row's profile; an int8 datapath's is the int8 ANN's, measured."""
+    if row.get("ann_success_rate") is None:
+        return _pct(task["success_rate"]) if task else "not run"
+    measured = "int8" in row.get("ann_success", "")
+    return _pct(row["ann_success_rate"]) + (" (int8, measured)" if measured else "")
 
 
 def _figures(report: dict[str, Any], trace: Any) -> dict[str, bytes]:
