@@ -25,7 +25,7 @@ from snnkart.energy.profiles import (
 from snnkart.errors import ReportError
 from snnkart.report.study_record import STUDY, StudyRecord
 
-REPORT_SCHEMA = "snnkart/report/v1"
+REPORT_SCHEMA = "snnkart/report/v2"
 DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
