@@ -104,6 +104,21 @@ def _ann_success(row: dict[str, Any], task: dict[str, Any] | None) -> str:
     return _pct(row["ann_success_rate"]) + (" (int8, measured)" if measured else "")
 
 
+def _int8(report: dict[str, Any]) -> str:
+    """What the int8 ANN did on the deployment's episodes, if it was run."""
+    run = report["ann"].get("run")
+    q = (run.get("task") or {}).get("int8") if run else None
+    if not q:
+        return ""
+    agree = q["action_agreement"]
+    return (f" The ANN run quantised to int8 (post-training, symmetric per tensor, calibrated "
+            f"on {q['calibration']['observations']} observations of {q['calibration']['episodes']} "
+            f"other episodes) was driven on the same episodes: success {_pct(q['success_rate'])} "
+            f"(measured), mean return {q['mean_return']:.2f}, "
+            f"{'-' if agree is None else f'{agree:.1%}'} of its actions equal the float "
+            "ANN's; the int8 profiles' rows carry its task.")  # fmt: skip
+
+
 def _figures(report: dict[str, Any], trace: Any) -> dict[str, bytes]:
     snn, net = report["snn"], report["network"]
     figs = {"firing_rates": plots.firing_rates(snn["per_inference"]["firing_rates"], net["sizes"])}
@@ -193,7 +208,7 @@ def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
         f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). "
         f"Network {report['network']['n_in']} -> {report['network']['sizes']} -> "
         f"{report['network']['n_out']}, T = {report['network']['num_steps']}. "
-        f"Host work priced on {_host(report['host_profile'])}. {_parity(d)}", "",
+        f"Host work priced on {_host(report['host_profile'])}. {_parity(d)}{_int8(report)}", "",
         "## Verdict", "", *[f"- {line}" for line in _verdict(report)], "",
         "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
         "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
