@@ -63,13 +63,18 @@ class Int8Predictor:
         self.discrete = run.policy.discrete
         self.shadow = TorchPredictor(run, seed=seed)
         self.steps = self.agreed = 0
+        self.seconds = {"int8": 0.0, "float": 0.0}  # wall time of each forward pass
 
     def reset(self) -> None:
         self.shadow.reset()
 
     def predict(self, obs: np.ndarray) -> Any:
+        t0 = time.perf_counter()
         action = self.net.act(normalised(self.run, obs)[None], self.discrete)[0]
+        t1 = time.perf_counter()
         reference = self.shadow.predict(obs)
+        self.seconds["int8"] += t1 - t0
+        self.seconds["float"] += time.perf_counter() - t1
         self.steps += 1
         if self.discrete:
             self.agreed += int(action) == int(reference)
@@ -130,6 +135,13 @@ def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, epis
         "pre-activations), int32 accumulate, integer requantisation, tanh by table",
         "layers": net.describe(),
         "seconds": {"calibration": t1 - t0, "evaluation": time.perf_counter() - t1},
+        "host_ms_per_inference": {
+            "int8": 1000 * predictor.seconds["int8"] / max(predictor.steps, 1),
+            "float": 1000 * predictor.seconds["float"] / max(predictor.steps, 1),
+            "what": "wall time of one forward pass (normalisation included) on this machine's "
+            "CPU: the numpy int8 simulation and the torch float32 actor; not a model of a "
+            "digital accelerator's latency",
+        },
     }  # fmt: skip
 
 
