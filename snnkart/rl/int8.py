@@ -3,8 +3,9 @@ integer forward pass that runs it: the int8 baseline of the energy report, measu
 deployment's episodes (:mod:`snnkart.eval.ann_int8`) instead of assumed to drive as the float
 policy does.
 
-What is simulated, exactly (every integer held in numpy int64, its range checked against the
-width named; float scales are fixed once, from calibration):
+What is simulated, exactly (integers held in numpy int64 and kept inside the width named by
+clipping or a bound checked when the network is made; the requantisation's product ``acc * M``
+is a 64-bit intermediate; the float scales are fixed once, from calibration):
 
 - **Scales, symmetric per tensor, zero point 0, int8 range ±127 (-128 unused).** Weights:
   ``s_w = max|W| / 127``. The input of each layer (the normalised observation, then each
