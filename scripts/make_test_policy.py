@@ -2,11 +2,13 @@
 
     .venv/bin/python scripts/make_test_policy.py [--steps 300000] [--work runs/test-policy]
     .venv/bin/python scripts/make_test_policy.py --env gazebo --work runs/test-policy-gazebo
+    .venv/bin/python scripts/make_test_policy.py --policy ann --steps 150000 --work runs/test-ann
 
-Trains a small_S SNN with the defaults (seed 1, no TensorBoard, no trajectories), then writes
-``tests/data/policies/ENV-snn/`` with its ``config.toml`` and its latest checkpoint without the
-optimizer state (the tests only evaluate it), about 120 kB: ``grid-snn`` for
-``tests/test_fixed_point.py``, ``gazebo-snn`` for the ROS bridge's tests. About 1-2 minutes.
+Trains a small_S SNN (or ANN) with the defaults (seed 1, no TensorBoard, no trajectories), then
+writes ``tests/data/policies/ENV-POLICY/`` with its ``config.toml`` and its latest checkpoint
+without the optimizer state (the tests only evaluate it), about 120 kB: ``grid-snn`` for
+``tests/test_fixed_point.py``, ``gazebo-snn`` for the ROS bridge's tests, ``grid-ann`` for the
+int8 ANN's (``tests/test_ann_int8.py``). About 1-2 minutes.
 """
 
 from __future__ import annotations
@@ -29,12 +31,13 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--work", type=Path, default=Path("runs/test-policy"))
     parser.add_argument("--env", default="grid", help="grid (default) or gazebo")
+    parser.add_argument("--policy", default="snn", help="snn (default) or ann")
     args = parser.parse_args()
-    dest = POLICIES / f"{args.env}-snn"
+    dest = POLICIES / f"{args.env}-{args.policy}"
     torch.set_num_threads(1)
     if not (args.work / "checkpoint.pt").is_file():
         cfg = load_config(
-            overrides={"env": args.env, "policy": "snn", "track": "small_S", "seed": 1,
+            overrides={"env": args.env, "policy": args.policy, "track": "small_S", "seed": 1,
                        "total_steps": args.steps},
             sets=["run.tensorboard=false", "run.trajectories=false"],
         )  # fmt: skip

@@ -401,6 +401,14 @@ def test_report_files_and_schema(report: Path) -> None:
     ann_task = data["ann"]["run"]["task"]
     assert (ann_task["episodes"], ann_task["first_seed"]) == (3, 10_000)
     assert 0 <= ann_task["success_rate"] <= 1
+    # and quantised to int8, driven on the same episodes: an int8 row carries its task
+    int8 = ann_task["int8"]
+    assert (int8["episodes"], int8["first_seed"]) == (3, 10_000)
+    assert int8["calibration"]["first_seed"] == 10_003
+    row = next(c for c in data["comparisons"]
+               if c["ann"] == "run" and c["ann_profile"] == "horowitz45_int8")  # fmt: skip
+    assert row["ann_success_rate"] == int8["success_rate"] and "int8" in row["ann_success"]
+    assert row["ann_per_episode_pj"] == pytest.approx(row["ann_pj"] * int8["steps_per_episode"])
 
 
 @pytest.mark.timeout(600)

@@ -99,6 +99,8 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, 
             f"--ann {ann_dir} was trained on track {trained['name']}, the deployment drove "
             f"{env.track}; compare on the same track"
         )
+    from snnkart.eval.ann_int8 import int8_task
+
     gym_env = run.config.make_env(track=run.track)
     episodes = len(record.episodes) or 1
     try:
@@ -113,6 +115,8 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, 
         "episodes": episodes, "first_seed": record.first_seed,
         "success_rate": summary.success_rate, "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return, "steps_per_episode": steps / episodes,
+        "int8": int8_task(run, lambda: run.config.make_env(track=run.track),
+                          record.first_seed, episodes),
     }  # fmt: skip
     return AnnCounts(widths, run.config.action_mode, "ANN run"), task
 
@@ -165,10 +169,13 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
     that was not run), the ratio with every price range sampled together, and the break-even
     in spike density, T and width. The SNN's host work is priced on ``host``, else on the ANN's
     profile."""
+    from snnkart.eval.ann_int8 import task_on
+
     rows = []
     for chip in chips:
-        for key, (ann, task) in anns.items():
+        for key, (ann, float_task) in anns.items():
             for dig in digital:
+                task = task_on(float_task, dig.name)  # int8 datapath: the int8 ANN's, measured
                 s_terms = snn_terms(snn, chip, host or dig)
                 e_snn = total(s_terms)
                 a_terms = ann_terms(ann, dig)
@@ -183,11 +190,13 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                 rows.append({
                     "snn_profile": chip.name, "host_profile": (host or dig).name, "ann": key,
                     "ann_profile": dig.name, "snn_pj": e_snn, "ann_pj": e_ann,
-                    "ratio": e_snn / e_ann,
+                    "ratio": e_snn / e_ann if e_ann else None,
                     "memory": _memory(snn, ann, host or dig, dig),
                     "placement": where.as_dict() if where else None,
                     "static": cmp.with_static(),
                     "not_published": not_published(chip, host or dig, dig),
+                    "ann_success_rate": task["success_rate"] if task else None,
+                    "ann_success": _ann_success(task, float_task),
                     "snn_per_episode_pj": e_snn * snn.steps_per_episode,
                     "ann_per_episode_pj": e_ann * task["steps_per_episode"] if task else None,
                     "snn_per_return_pj": _per_return(e_snn * snn.steps_per_episode, snn_return),
@@ -209,6 +218,15 @@ def _memory(snn: SnnCounts, ann: AnnCounts, host: Profile, digital: Profile) -> 
     ann_bytes = ann.parameters * digital.weight_bits / 8
     return {"snn_host_weight_bytes": snn_bytes, "snn_host_array": memory_row(snn_bytes),
             "ann_weight_bytes": ann_bytes, "ann_array": memory_row(ann_bytes)}  # fmt: skip
+
+
+def _ann_success(task: dict[str, Any] | None, float_task: dict[str, Any] | None) -> str:
+    """Where the ANN's success on a profile comes from."""
+    if task is None:
+        return "not run"
+    if task is not float_task:
+        return "measured: the ANN quantised to int8, on the deployment's episodes"
+    return "measured: the float ANN, on the deployment's episodes"
 
 
 def _per_return(energy: float, mean_return: float) -> float | None:

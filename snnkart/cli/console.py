@@ -124,6 +124,8 @@ def print_headline(report: dict[str, Any], rows: list[dict[str, str]]) -> None:
     ann = report["ann"][primary]
     snn_task, ann_task = report["snn"]["task"], ann["task"]
     ann_rate = f"{ann_task['success_rate']:.0%}" if ann_task else "not run"
+    if ann_task and ann_task.get("int8"):
+        ann_rate += f", int8 ANN {ann_task['int8']['success_rate']:.0%} (measured)"
     table = Table(
         title=f"energy per inference, SNN vs {ann['label']}",
         caption=f"success: SNN {snn_task['success_rate']:.0%}, ANN {ann_rate} "

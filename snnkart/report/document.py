@@ -104,9 +104,32 @@ def headline(report: dict[str, Any]) -> list[dict[str, str]]:
             "SNN µJ/return": _uj(c["snn_per_return_pj"]),
             "ANN µJ/return": _uj(c["ann_per_return_pj"]),
             "SNN success": _pct(snn_task["success_rate"]),
-            "ANN success": _pct(task["success_rate"]) if task else "not run",
+            "ANN success": _ann_success(c, task),
         })  # fmt: skip
     return rows
+
+
+def _ann_success(row: dict[str, Any], task: dict[str, Any] | None) -> str:
+    """The ANN's success on the row's profile; an int8 datapath's is the int8 ANN's, measured."""
+    if row.get("ann_success_rate") is None:
+        return _pct(task["success_rate"]) if task else "not run"
+    measured = "int8" in row.get("ann_success", "")
+    return _pct(row["ann_success_rate"]) + (" (int8, measured)" if measured else "")
+
+
+def _int8(report: dict[str, Any]) -> str:
+    """What the int8 ANN did on the deployment's episodes, if it was run."""
+    run = report["ann"].get("run")
+    q = (run.get("task") or {}).get("int8") if run else None
+    if not q:
+        return ""
+    agree = q["action_agreement"]
+    return (f" The ANN run quantised to int8 (post-training, symmetric per tensor, calibrated "
+            f"on {q['calibration']['observations']} observations of {q['calibration']['episodes']} "
+            f"other episodes) was driven on the same episodes: success {_pct(q['success_rate'])} "
+            f"(measured), mean return {q['mean_return']:.2f}, "
+            f"{'-' if agree is None else f'{agree:.1%}'} of its actions equal the float "
+            "ANN's; the int8 profiles' rows carry its task.")  # fmt: skip
 
 
 def _figures(report: dict[str, Any], trace: Any) -> dict[str, bytes]:
@@ -235,7 +258,7 @@ def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
         f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). "
         f"Network {report['network']['n_in']} -> {report['network']['sizes']} -> "
         f"{report['network']['n_out']}, T = {report['network']['num_steps']}. "
-        f"Host work priced on {_host(report['host_profile'])}. {_parity(d)}", "",
+        f"Host work priced on {_host(report['host_profile'])}. {_parity(d)}{_int8(report)}", "",
         "## Verdict", "", *[f"- {line}" for line in _verdict(report)], "",
         "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
         "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
