@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from snnkart.app.reporter import Reporter
+from snnkart.app.sanafe_report import sanafe_section
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.records import Reading, RecordError, from_data, to_data
 from snnkart.energy.counts import AnnCounts, SnnCounts
@@ -25,7 +26,7 @@ from snnkart.energy.profiles import (
 from snnkart.errors import ReportError
 from snnkart.report.study_record import STUDY, StudyRecord
 
-REPORT_SCHEMA = "snnkart/report/v1"
+REPORT_SCHEMA = "snnkart/report/v2"
 DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
@@ -314,6 +315,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         "sweep": None
         if sweep is None
         else _sweep(sweep, chips[0], host_profile or _memory_first(digital)[0], digital),
+        "sanafe": sanafe_section(record, deploy_dir, snn),  # the second chip model
     }
 
 

@@ -1,0 +1,174 @@
+"""The report's SANA-FE section: the deployed network built in SANA-FE's Loihi model, driven with
+the deployment's recorded inputs (``inputs.npz``), its energy and on-chip latency per inference
+next to snnkart's own Loihi 1 estimate (:mod:`snnkart.energy.sanafe_model` says how it runs).
+
+The network in SANA-FE: each spiking layer a LIF group on cores of its own (512 neurons per
+core), reset at its row of every window as Lava's ``LIFReset``; layer 0 driven by the host's
+recorded current. Two runs:
+
+- **replay** (the estimate): each layer's recorded spikes replayed by an input group on that
+  layer's cores into the next layer's LIF group, so SANA-FE's synaptic events and messages are
+  the deployment's own and the two estimators differ only in their prices;
+- **chain** (the check): the LIF groups feed each other, driven by layer 0's current only;
+  where they reproduce the recorded spikes, SANA-FE's LIF computes what Lava computed.
+
+Units: the fixed-point network in Lava's integer units (v / 64, as SANA-FE truncates v to
+1/64 toward zero, and fires on v > threshold as Lava does: bit-exact but for Lava's 24-bit
+wrap-around); float64 and float32 in their own units, where SANA-FE's 1/64 truncation of v
+differs from Lava's arithmetic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from snnkart.backends.lava_params import lava_layers
+from snnkart.backends.loading import LoadedPolicy, load_policy
+from snnkart.contract.deploy_inputs import DeployInputs, InputsError
+from snnkart.contract.deploy_record import DeployRecord
+from snnkart.energy.counts import SnnCounts
+from snnkart.energy.pricing import snn_terms
+from snnkart.energy.profiles import load_profile
+from snnkart.energy.sanafe_model import (
+    CONTROL_PERIOD_S,
+    INSTALL_HINT,
+    LOIHI_YAML,
+    per_inference,
+    run_sanafe,
+    sanafe_python,
+    versus_snnkart,
+)
+from snnkart.errors import SnnkartError
+
+NEURONS_PER_CORE = 512
+"""A layer's LIF neurons per core; its replay inputs share the core (Loihi: 1,024 per core)."""
+
+
+def network_job(policy: LoadedPolicy, inputs: DeployInputs) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The job for :mod:`snnkart.energy.sanafe_worker`: per layer its LIF parameters and the
+    arrays (biases, weights, the current and the raster aligned to Lava's pipeline)."""
+    chain, arithmetic = policy.chain, inputs.arithmetic
+    arrays: dict[str, np.ndarray] = {}
+    layers = []
+    if arithmetic == "float32":
+        for i, layer in enumerate(chain.layers):
+            layers.append({"n": layer.size, "threshold": float(layer.threshold[0]),
+                           "leak_decay": float(layer.beta[0]),
+                           "input_decay": 0.0 if layer.alpha is None else float(layer.alpha[0])})  # fmt: skip
+            arrays[f"bias{i}"] = np.zeros(layer.size) if i == 0 else layer.bias.astype(np.float64)
+            if i:
+                arrays[f"weight{i}"] = layer.weight.astype(np.float64)
+    else:
+        fixed = arithmetic == "fixed"
+        unit = 64.0 if fixed else 1.0  # Lava's v is in 1/64 of a weight unit (ACT_SHIFT)
+        one = 4096.0 if fixed else 1.0
+        params = lava_layers(chain, "fixed" if fixed else "float64", policy.fixed if fixed else None)
+        for i, p in enumerate(params):
+            layers.append({"n": chain.sizes[i], "threshold": float(p.vth),
+                           "leak_decay": (one - p.dv) / one,
+                           "input_decay": (one - p.du - (1 if fixed else 0)) / one})  # fmt: skip
+            bias = np.asarray(p.bias_mant, dtype=np.float64) * 2.0**p.bias_exp
+            arrays[f"bias{i}"] = bias / unit
+            if p.weight is not None:
+                arrays[f"weight{i}"] = np.asarray(p.weight, dtype=np.float64)
+    depth = len(chain.sizes) - 1
+    arrays["current"] = inputs.current.astype(np.float64)
+    arrays["raster"] = _aligned(inputs, depth)
+    job = {"layers": layers, "rows": inputs.num_steps + depth, "steps": inputs.num_steps,
+           "modes": ["replay", "chain"], "neurons_per_core": NEURONS_PER_CORE}  # fmt: skip
+    return job, arrays
+
+
+def _aligned(inputs: DeployInputs, depth: int) -> np.ndarray:
+    """The raster with layer i's logical step t at row i + t (Lava's pipeline): as recorded
+    for the Lava arithmetics; built from the logical steps for float32 (no pipeline)."""
+    if inputs.depth == depth:
+        return inputs.raster
+    e, t = inputs.env_steps, inputs.num_steps
+    out = np.zeros((e, t + depth, inputs.raster.shape[2]), dtype=bool)
+    offsets = np.cumsum((0, *inputs.sizes))
+    for i in range(len(inputs.sizes)):
+        cols = slice(offsets[i], offsets[i + 1])
+        out[:, i : i + t, cols] = inputs.raster[:, :t, cols]
+    return out
+
+
+def _find_nir(record: DeployRecord, deploy_dir: Path) -> Path | None:
+    recorded = Path(record.nir_file or "policy.nir")
+    base = deploy_dir if deploy_dir.is_dir() else deploy_dir.parent
+    return next((p for p in (recorded, base.parent / recorded.name, base / recorded.name)
+                 if p.is_file()), None)  # fmt: skip
+
+
+def sanafe_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
+    """The report's ``sanafe`` entry; ``available`` false with the reason and how to add it
+    when SANA-FE, the recorded inputs or the NIR file is missing."""
+    python = sanafe_python()
+    if python is None:
+        return {"available": False, "reason": f"SANA-FE is not installed: {INSTALL_HINT}"}
+    nir_path = _find_nir(record, deploy_dir)
+    if nir_path is None:
+        return {"available": False, "reason": f"the NIR file {record.nir_file} is not there"}
+    try:
+        inputs = DeployInputs.load(deploy_dir if deploy_dir.is_dir() else deploy_dir.parent)
+        job, arrays = network_job(load_policy(nir_path), inputs)
+        result = run_sanafe(job, arrays, python)
+    except (InputsError, SnnkartError) as exc:
+        return {"available": False, "reason": str(exc)}
+    return compare(result, inputs, snn, record)
+
+
+def compare(result: dict[str, Any], inputs: DeployInputs, snn: SnnCounts,
+            record: DeployRecord) -> dict[str, Any]:  # fmt: skip
+    """SANA-FE's replay per inference against snnkart's Loihi 1 chip terms, the spike counts
+    each side saw, the chain check, and the on-chip latency against the control period."""
+    replay, chain = result["replay"], result["chain"]
+    est = per_inference(replay)
+    loihi1 = load_profile("loihi1")
+    chip = [t.as_dict() for t in snn_terms(replace(snn, host=()), loihi1, loihi1)]
+    c = record.counts
+    o = c.pipeline_overhead
+    deployed = [s + (o.spikes[i] if o else 0) for i, s in enumerate(c.spikes)]
+    reproduces = not any(chain["lif_mismatched_logical_neuron_steps"])
+    # the chain is the network itself (no replay inputs in its pipelines): its latency, when
+    # its spikes are the deployment's; else the replay's
+    timed = chain if reproduces else replay
+    latency = timed["latency_s"]["mean"]
+    return {
+        "available": True,
+        "model": LOIHI_YAML,
+        "sanafe_version": result.get("sanafe_version"),
+        "run": {"env_steps": replay["env_steps"], "rows_per_env_step": replay["rows"],
+                "mapping": f"a layer per core ({NEURONS_PER_CORE} neurons per core), "
+                           "replay inputs on their layer's cores",
+                "wall_s": replay["wall_s"] + chain["wall_s"]},  # fmt: skip
+        "per_inference": est,
+        "versus_snnkart_loihi1": versus_snnkart(est, chip),
+        "spikes_per_layer": {
+            "deploy_json": deployed,
+            "inputs_npz": inputs.layer_spikes(),
+            "replayed_by_sanafe": replay["replayed_spikes"],
+            "sanafe_lif_replay": replay["lif_spikes"],
+        },
+        "lif_check": {
+            "what": "SANA-FE's LIF groups chained, driven only by layer 0's recorded current",
+            "recorded_spikes": chain["recorded_spikes"],
+            "sanafe_spikes": chain["lif_spikes"],
+            "mismatched_logical_neuron_steps": chain["lif_mismatched_logical_neuron_steps"],
+            "reproduces": reproduces,
+            "arithmetic": inputs.arithmetic,
+        },
+        "latency": {
+            "on_chip_s_per_inference": latency,
+            "max_s": timed["latency_s"]["max"],
+            "from": f"the {timed['mode']} run",
+            "replay_s_per_inference": replay["latency_s"]["mean"],
+            "control_period_s": CONTROL_PERIOD_S,
+            "fraction_of_control_period": latency / CONTROL_PERIOD_S,
+            "steps_per_inference": replay["rows"],
+        },
+    }
