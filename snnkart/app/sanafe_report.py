@@ -20,6 +20,7 @@ differs from Lava's arithmetic.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -48,7 +49,9 @@ NEURONS_PER_CORE = 512
 """A layer's LIF neurons per core; its replay inputs share the core (Loihi: 1,024 per core)."""
 
 
-def network_job(policy: LoadedPolicy, inputs: DeployInputs) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+def network_job(
+    policy: LoadedPolicy, inputs: DeployInputs
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """The job for :mod:`snnkart.energy.sanafe_worker`: per layer its LIF parameters and the
     arrays (biases, weights, the current and the raster aligned to Lava's pipeline)."""
     chain, arithmetic = policy.chain, inputs.arithmetic
@@ -66,7 +69,9 @@ def network_job(policy: LoadedPolicy, inputs: DeployInputs) -> tuple[dict[str, A
         fixed = arithmetic == "fixed"
         unit = 64.0 if fixed else 1.0  # Lava's v is in 1/64 of a weight unit (ACT_SHIFT)
         one = 4096.0 if fixed else 1.0
-        params = lava_layers(chain, "fixed" if fixed else "float64", policy.fixed if fixed else None)
+        params = lava_layers(
+            chain, "fixed" if fixed else "float64", policy.fixed if fixed else None
+        )
         for i, p in enumerate(params):
             layers.append({"n": chain.sizes[i], "threshold": float(p.vth),
                            "leak_decay": (one - p.dv) / one,
@@ -104,10 +109,11 @@ def _find_nir(record: DeployRecord, deploy_dir: Path) -> Path | None:
                  if p.is_file()), None)  # fmt: skip
 
 
-def sanafe_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
+def sanafe_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts,
+                   find: Callable[[], str | None] = sanafe_python) -> dict[str, Any]:  # fmt: skip
     """The report's ``sanafe`` entry; ``available`` false with the reason and how to add it
-    when SANA-FE, the recorded inputs or the NIR file is missing."""
-    python = sanafe_python()
+    when SANA-FE (looked for by ``find``), the recorded inputs or the NIR file is missing."""
+    python = find()
     if python is None:
         return {"available": False, "reason": f"SANA-FE is not installed: {INSTALL_HINT}"}
     nir_path = _find_nir(record, deploy_dir)
@@ -142,10 +148,13 @@ def compare(result: dict[str, Any], inputs: DeployInputs, snn: SnnCounts,
         "available": True,
         "model": LOIHI_YAML,
         "sanafe_version": result.get("sanafe_version"),
-        "run": {"env_steps": replay["env_steps"], "rows_per_env_step": replay["rows"],
-                "mapping": f"a layer per core ({NEURONS_PER_CORE} neurons per core), "
-                           "replay inputs on their layer's cores",
-                "wall_s": replay["wall_s"] + chain["wall_s"]},  # fmt: skip
+        "run": {
+            "env_steps": replay["env_steps"],
+            "rows_per_env_step": replay["rows"],
+            "mapping": f"a layer per core ({NEURONS_PER_CORE} neurons per core), "
+            "replay inputs on their layer's cores",
+            "wall_s": replay["wall_s"] + chain["wall_s"],
+        },
         "per_inference": est,
         "versus_snnkart_loihi1": versus_snnkart(est, chip),
         "spikes_per_layer": {

@@ -28,6 +28,7 @@ policy at T = 8 (3,528 env steps, current encoding) takes 0.8 MB: 0.56 MB of
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,10 @@ class DeployInputs:
     def __post_init__(self) -> None:
         e, rows, n = self.raster.shape
         held = self.current.shape[:2] == (e, 1)
-        if not (held or self.current.shape[:2] == (e, self.num_steps)) or rows != self.num_steps + self.depth:
+        if (
+            not (held or self.current.shape[:2] == (e, self.num_steps))
+            or rows != self.num_steps + self.depth
+        ):
             raise InputsError(
                 f"inputs: current {self.current.shape} and raster {self.raster.shape} do not "
                 f"fit T = {self.num_steps}, depth {self.depth}; run snnkart deploy again"
@@ -79,7 +83,7 @@ class DeployInputs:
     def layer_spikes(self) -> list[int]:
         """Spikes per layer over every row (logical and fill/drain)."""
         offsets = np.cumsum((0, *self.sizes))
-        return [int(self.raster[:, :, a:b].sum()) for a, b in zip(offsets, offsets[1:])]
+        return [int(self.raster[:, :, a:b].sum()) for a, b in pairwise(offsets)]
 
     def save(self, path: Path) -> None:
         np.savez_compressed(
@@ -122,7 +126,9 @@ class DeployInputs:
         except (OSError, KeyError, ValueError) as exc:
             if isinstance(exc, InputsError):
                 raise
-            raise InputsError(f"{path}: not a readable inputs.npz ({exc}); run snnkart deploy again") from exc
+            raise InputsError(
+                f"{path}: not a readable inputs.npz ({exc}); run snnkart deploy again"
+            ) from exc
 
 
 def _held(current: np.ndarray) -> np.ndarray:

@@ -119,7 +119,9 @@ def per_inference(run: dict[str, Any]) -> dict[str, Any]:
     }  # fmt: skip
 
 
-def versus_snnkart(sanafe: dict[str, Any], chip_terms: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def versus_snnkart(
+    sanafe: dict[str, Any], chip_terms: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
     """SANA-FE's components against snnkart's chip terms (``snn_terms`` on ``loihi1``, as
     dicts), each pair's ratio, and the pairs more than 2x apart flagged."""
     ours = {

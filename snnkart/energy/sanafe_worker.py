@@ -31,6 +31,7 @@ import json
 import sys
 import time
 from importlib import metadata
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -115,7 +116,7 @@ class Tally:
                     self.replayed[layer] += 1
 
 
-def _events(job: dict[str, Any], current: np.ndarray, held: bool) -> list[int]:
+def _events(job: dict[str, Any], held: bool) -> list[int]:
     """The rows of a window at which something is set: each layer's reset (row i), and layer
     0's current (each row it changes, and row T where the host stops sending)."""
     rows, steps = job["rows"], job["steps"]
@@ -125,30 +126,33 @@ def _events(job: dict[str, Any], current: np.ndarray, held: bool) -> list[int]:
     return sorted(marks | {rows})
 
 
+def _set_row(groups: Any, row: int, steps: int, current: np.ndarray, bias0: np.ndarray) -> None:
+    """Before ``row``: layer ``row``'s reset (potential 0), and layer 0's bias, its own plus
+    the host's current of this row (none from row T on)."""
+    reset = {"potential": 0.0}
+    if 0 < row < len(groups):
+        for neuron in groups[f"N{row}"]:
+            neuron.set_attributes(model_attributes=reset)
+    if row <= steps:
+        drive = current[min(row, len(current) - 1)] if row < steps else np.zeros_like(bias0)
+        for j, neuron in enumerate(groups["N0"]):
+            attrs = {**(reset if row == 0 else {}), "bias": float(bias0[j] + drive[j])}
+            neuron.set_attributes(model_attributes=attrs)
+
+
 def run_window(chip: Any, job: dict[str, Any], arrays: Any, e: int, tally: Tally) -> None:
     """One env step's W rows: replay spikes set, then the rows simulated between events."""
-    groups, sizes = chip.mapped_neuron_groups, tally.sizes
+    groups, offsets = chip.mapped_neuron_groups, tally.offsets
     raster, current = arrays["raster"][e], arrays["current"][e]
-    bias0 = np.asarray(arrays["bias0"], dtype=np.float64)
-    for i in range(len(sizes) - 1):
-        name = f"R{i}"
-        if name in groups:
-            cols = raster[:, tally.offsets[i] : tally.offsets[i + 1]]
-            for j, neuron in enumerate(groups[name]):
-                neuron.set_attributes(model_attributes={"spikes": cols[:, j].tolist()})
+    lif = {name: group for name, group in groups.items() if name.startswith("N")}
+    for i in range(len(tally.sizes) - 1):
+        for j, neuron in enumerate(groups.get(f"R{i}", [])):
+            spikes = raster[:, offsets[i] + j].tolist()
+            neuron.set_attributes(model_attributes={"spikes": spikes})
     tally.window[:] = False
     tally.latency.append(0.0)
-    marks = _events(job, current, len(current) == 1)
-    for start, stop in zip(marks, marks[1:]):
-        for i in range(len(sizes)):
-            attrs: dict[str, float] = {"potential": 0.0} if start == i else {}
-            if i == 0 and (start < job["steps"] or start == job["steps"]):
-                drive = current[min(start, len(current) - 1)] if start < job["steps"] else 0 * bias0
-                for j, neuron in enumerate(groups["N0"]):
-                    neuron.set_attributes(model_attributes={**attrs, "bias": float(bias0[j] + drive[j])})
-            elif attrs:
-                for neuron in groups[f"N{i}"]:
-                    neuron.set_attributes(model_attributes=attrs)
+    for start, stop in pairwise(_events(job, len(current) == 1)):
+        _set_row(lif, start, job["steps"], current, arrays["bias0"])
         with contextlib.redirect_stdout(io.StringIO()):
             res = chip.sim(stop - start, spike_trace=True, perf_trace=True, processing_threads=1)
         tally.add(res, start)
@@ -172,7 +176,7 @@ def run(sanafe: Any, job: dict[str, Any], arrays: Any, mode: str) -> dict[str, A
             logical = slice(i, i + steps)
             mismatched[i] += int((tally.window[logical, cols] != raster[e][logical, cols]).sum())
     offsets = tally.offsets
-    recorded = [int(raster[:, :, a:b].sum()) for a, b in zip(offsets, offsets[1:])]
+    recorded = [int(raster[:, :, a:b].sum()) for a, b in pairwise(offsets)]
     return {
         "mode": mode, "env_steps": int(raster.shape[0]), "rows": rows,
         "energy_j": tally.energy, "counts": tally.counts,
@@ -192,7 +196,7 @@ def main(job_dir: Path) -> None:
 
     with np.load(job_dir / "job.npz", allow_pickle=False) as f:
         arrays = {k: f[k] for k in f.files}
-    result = {mode: run(sanafe, job, arrays, mode) for mode in job["modes"]}
+    result: dict[str, Any] = {mode: run(sanafe, job, arrays, mode) for mode in job["modes"]}
     result["sanafe_version"] = metadata.version("sanafe")
     (job_dir / "result.json").write_text(json.dumps(result))
 

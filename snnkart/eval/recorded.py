@@ -46,8 +46,10 @@ def record_inputs(backend: Backend) -> RecordingEngine:
 def recorded_inputs(backend: Backend, recorder: RecordingEngine, first_seed: int) -> DeployInputs:
     """What ``recorder`` kept of ``backend``'s run, as the ``inputs.npz`` record."""
     engine, sizes = recorder._engine, backend.chain.sizes
-    current = _compact(np.stack(recorder.currents)) if recorder.currents else np.zeros(
-        (0, engine.steps, sizes[0])
+    current = (
+        _compact(np.stack(recorder.currents))
+        if recorder.currents
+        else np.zeros((0, engine.steps, sizes[0]))
     )
     raster = np.stack(recorder.rasters) if recorder.rasters else np.zeros(
         (0, engine.steps + engine.depth, sum(sizes)), dtype=bool
