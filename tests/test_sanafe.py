@@ -19,7 +19,13 @@ from snnkart.backends.reference import LavaFixedChain
 from snnkart.contract.deploy_inputs import DeployInputs
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import SnnCounts
-from snnkart.energy.sanafe_model import SANAFE_PJ, per_inference, run_sanafe, sanafe_python
+from snnkart.energy.sanafe_model import (
+    SANAFE_PJ,
+    SanafeError,
+    per_inference,
+    run_sanafe,
+    sanafe_python,
+)
 from snnkart.eval.closed_loop import run_deploy
 from snnkart.eval.request import DeployRequest
 
@@ -137,3 +143,15 @@ def test_without_sanafe_the_report_says_how_to_add_it(deployed: Path) -> None:
         "reason": "SANA-FE is not installed: pip install 'snnkart[sanafe]' (SANA-FE 2.2.9, "
         "GPL-3.0), or point $SNNKART_SANAFE_PYTHON at a Python 3.10 that has it",
     }
+
+
+def test_a_sanafe_failure_is_one_clear_error(sanafe_py: str) -> None:
+    """SANA-FE refusing a network (here more neurons than a Loihi core holds) ends its own
+    process only; snnkart gets SANA-FE's message as a SanafeError."""
+    n = 1100
+    job = {"layers": [{"n": n, "threshold": 1.0, "leak_decay": 1.0, "input_decay": 0.0}],
+           "rows": 1, "steps": 1, "modes": ["chain"], "neurons_per_core": 2048}  # fmt: skip
+    arrays = {"bias0": np.zeros(n), "current": np.zeros((1, 1, n)),
+              "raster": np.zeros((1, 1, n), dtype=bool)}  # fmt: skip
+    with pytest.raises(SanafeError, match=r"status 1 .*Exceeded maximum neurons per core"):
+        run_sanafe(job, arrays, sanafe_py)

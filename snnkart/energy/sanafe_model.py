@@ -79,12 +79,13 @@ def run_sanafe(job: dict[str, Any], arrays: dict[str, np.ndarray], python: str) 
             raise SanafeError(f"SANA-FE could not run under {python}: {exc}") from exc
         result = job_dir / "result.json"
         if proc.returncode != 0 or not result.is_file():
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+            text = (proc.stderr or proc.stdout).strip()
+            missing = "No module named 'sanafe'" in text
             raise SanafeError(
                 f"SANA-FE ended with status {proc.returncode} under {python}: "
-                + (" | ".join(tail) or "no message")
-                + f"; check that {python} has sanafe==2.2.9 ({INSTALL_HINT})"
-            )
+                + (f"sanafe is not installed there; {INSTALL_HINT}" if missing
+                   else " | ".join(text.splitlines()[-2:]) or "no message")
+            )  # fmt: skip
         return dict(json.loads(result.read_text()))
 
 
