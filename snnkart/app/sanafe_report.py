@@ -47,6 +47,9 @@ from snnkart.errors import SnnkartError
 
 NEURONS_PER_CORE = 512
 """A layer's LIF neurons per core; its replay inputs share the core (Loihi: 1,024 per core)."""
+CHECK_ENV_STEPS = 500
+"""The chain check (and the latency, when it reproduces the spikes) runs the first env steps
+only: SANA-FE takes about 5 ms per env step, and the replay already runs them all."""
 
 
 def network_job(
@@ -84,7 +87,8 @@ def network_job(
     arrays["current"] = inputs.current.astype(np.float64)
     arrays["raster"] = _aligned(inputs, depth)
     job = {"layers": layers, "rows": inputs.num_steps + depth, "steps": inputs.num_steps,
-           "modes": ["replay", "chain"], "neurons_per_core": NEURONS_PER_CORE}  # fmt: skip
+           "modes": ["replay", "chain"], "neurons_per_core": NEURONS_PER_CORE,
+           "env_steps": {"chain": CHECK_ENV_STEPS}}  # fmt: skip
     return job, arrays
 
 
@@ -165,6 +169,7 @@ def compare(result: dict[str, Any], inputs: DeployInputs, snn: SnnCounts,
         },
         "lif_check": {
             "what": "SANA-FE's LIF groups chained, driven only by layer 0's recorded current",
+            "env_steps": chain["env_steps"],
             "recorded_spikes": chain["recorded_spikes"],
             "sanafe_spikes": chain["lif_spikes"],
             "mismatched_logical_neuron_steps": chain["lif_mismatched_logical_neuron_steps"],

@@ -30,10 +30,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from snnkart.errors import SnnkartError
+from snnkart.io import atomic_path
 
 INPUTS_SCHEMA = "snnkart/inputs/v1"
 INPUTS_FILE = "inputs.npz"
@@ -86,8 +88,13 @@ class DeployInputs:
         return [int(self.raster[:, :, a:b].sum()) for a, b in pairwise(offsets)]
 
     def save(self, path: Path) -> None:
+        """Write the record to ``path`` atomically (no partial file on a full disk)."""
+        with atomic_path(path) as tmp, tmp.open("wb") as f:
+            self._save(f)
+
+    def _save(self, f: Any) -> None:
         np.savez_compressed(
-            path,
+            f,
             schema=np.array(INPUTS_SCHEMA),
             current=_held(self.current),
             raster=np.packbits(self.raster.astype(bool), axis=-1),

@@ -8,7 +8,8 @@ snnkart down. It imports numpy and sanafe, nothing of snnkart.
 Input, in ``JOB_DIR``: ``job.json`` (per layer ``n``, ``threshold``, ``leak_decay``,
 ``input_decay``; ``rows`` W and ``steps`` T per window; ``modes``; ``neurons_per_core``) and
 ``job.npz`` (``bias{i}`` ``[n_i]``, ``weight{i}`` ``[n_i, n_{i-1}]`` for i >= 1, ``current``
-``[E, T or 1, n_0]``, ``raster`` ``[E, W, N]`` bool: layer i's logical step t at row i + t).
+``[E, T or 1, n_0]``, ``raster`` ``[E, W, N]`` bool: layer i's logical step t at row i + t); optionally
+``env_steps``, per mode the number of env steps to run (default: all).
 Output: ``result.json``, one entry per mode.
 
 The network, per layer i: a LIF group ``N{i}`` (``loihi_lif``, dense synapses), reset (its
@@ -159,13 +160,15 @@ def run_window(chip: Any, job: dict[str, Any], arrays: Any, e: int, tally: Tally
 
 
 def run(sanafe: Any, job: dict[str, Any], arrays: Any, mode: str) -> dict[str, Any]:
-    """Every env step of the job in ``mode``: energies (J), counts, latency per env step (s),
-    and per layer the spikes SANA-FE saw against the recorded ones."""
+    """The job's env steps in ``mode`` (the first ``job["env_steps"][mode]`` of them, or all):
+    energies (J), counts, latency per env step (s), and per layer the spikes SANA-FE saw
+    against the recorded ones."""
     t0 = time.perf_counter()
     chip = build(sanafe, job, arrays, mode)
     sizes, rows, steps = [x["n"] for x in job["layers"]], job["rows"], job["steps"]
     tally = Tally(sizes, rows)
-    raster = arrays["raster"]
+    limit = job.get("env_steps", {}).get(mode)
+    raster = arrays["raster"][:limit]
     fired = np.zeros(len(sizes), dtype=np.int64)
     mismatched = np.zeros(len(sizes), dtype=np.int64)
     for e in range(raster.shape[0]):

@@ -203,7 +203,11 @@ def _write(out_dir: Path, record: DeployRecord, inputs: DeployInputs) -> None:
     try:
         faults.fault_point("deploy-write")
         inputs.save(out_dir / INPUTS_FILE)
-        record.write(path)
+        try:
+            record.write(path)
+        except OSError:
+            (out_dir / INPUTS_FILE).unlink(missing_ok=True)  # no inputs without their record
+            raise
     except OSError as exc:
         raise DeployWriteError(
             f"the run finished but {path} could not be written: {exc.strerror or exc}; "
