@@ -28,6 +28,7 @@ from snnkart.energy.sanafe_model import (
 )
 from snnkart.eval.closed_loop import run_deploy
 from snnkart.eval.request import DeployRequest
+from snnkart.report.sanafe_page import sanafe_lines, sanafe_rows
 
 ROOT = Path(__file__).resolve().parents[1]
 NIR = ROOT / "tests/data/policies/grid-snn-nir-8ddd6dd/policy.nir"
@@ -133,6 +134,10 @@ def test_sanafe_sees_the_spikes_deploy_json_counted(deployed: Path, sanafe_py: s
     latency = section["latency"]
     assert 0 < latency["on_chip_s_per_inference"] < latency["control_period_s"]
     json.dumps(section)  # JSON-ready, as report.json needs it
+    page = "\n".join(sanafe_lines({"sanafe": section}))
+    assert "Spikes per layer: SANA-FE's equal deploy.json's." in page
+    assert "reproduces every recorded spike" in page
+    assert [row["term"] for row in sanafe_rows({"sanafe": section})] == list(pairs)
 
 
 def test_without_sanafe_the_report_says_how_to_add_it(deployed: Path) -> None:
@@ -143,6 +148,8 @@ def test_without_sanafe_the_report_says_how_to_add_it(deployed: Path) -> None:
         "reason": "SANA-FE is not installed: pip install 'snnkart[sanafe]' (SANA-FE 2.2.9, "
         "GPL-3.0), or point $SNNKART_SANAFE_PYTHON at a Python 3.10 that has it",
     }
+    assert sanafe_lines({"sanafe": section}) == [f"SANA-FE did not run: {section['reason']}."]
+    assert sanafe_rows({"sanafe": section}) == []
 
 
 def test_a_sanafe_failure_is_one_clear_error(sanafe_py: str) -> None:
