@@ -15,7 +15,7 @@ import pytest
 
 from snnkart.app.sanafe_report import sanafe_section
 from snnkart.backends.loading import load_policy
-from snnkart.backends.reference import LavaFixedChain
+from snnkart.backends.reference import LavaFixedChain, NIRReference
 from snnkart.contract.deploy_inputs import DeployInputs
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import SnnCounts
@@ -27,6 +27,7 @@ from snnkart.energy.sanafe_model import (
     sanafe_python,
 )
 from snnkart.eval.closed_loop import run_deploy
+from snnkart.eval.recorded import record_inputs, recorded_inputs
 from snnkart.eval.request import DeployRequest
 from snnkart.report.sanafe_page import sanafe_lines, sanafe_rows
 
@@ -66,6 +67,23 @@ def test_inputs_npz_replays_the_deployment(deployed: Path) -> None:
     engine = LavaFixedChain(policy.chain, policy.num_steps, policy.fixed)
     for step in range(inputs.env_steps):
         assert np.array_equal(engine.window(inputs.currents(step)), inputs.raster[step]), step
+
+
+def test_a_current_that_changes_within_a_window_is_kept_row_by_row(tmp_path: Path) -> None:
+    """Rate encoding sends a new current at every SNN step: inputs.npz keeps all T rows (and
+    one row per env step only while every env step holds its current)."""
+    backend = NIRReference(NIR, "float32")
+    recorder = record_inputs(backend)
+    T, n1 = backend.T, backend.chain.sizes[0]
+    rng = np.random.default_rng(0)
+    held = np.broadcast_to(rng.normal(size=n1).astype(np.float32), (T, n1))
+    changing = rng.normal(size=(T, n1)).astype(np.float32)
+    rasters = [backend.engine.window(c) for c in (held, changing)]
+    recorded_inputs(backend, recorder, first_seed=0).save(tmp_path / "inputs.npz")
+    inputs = DeployInputs.load(tmp_path)
+    assert inputs.current.shape == (2, T, n1)
+    assert np.array_equal(inputs.currents(0), held) and np.array_equal(inputs.currents(1), changing)
+    assert np.array_equal(inputs.raster, np.stack(rasters))
 
 
 def _hand_job() -> tuple[dict, dict[str, np.ndarray]]:
