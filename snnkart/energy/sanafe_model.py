@@ -120,6 +120,13 @@ def per_inference(run: dict[str, Any]) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def _prices(chip_terms: list[dict[str, Any]], part: str) -> str:
+    """snnkart's price(s) for ``part``, as the terms name them: "81 pJ (loihi1)"."""
+    terms = [t for t in chip_terms if t["part"] == part]
+    prices = sorted({f"{t['price_pj']:g}" for t in terms})
+    return f"{' / '.join(prices) or '-'} pJ ({terms[0]['profile'] if terms else 'no term'})"
+
+
 def versus_snnkart(
     sanafe: dict[str, Any], chip_terms: list[dict[str, Any]]
 ) -> list[dict[str, Any]]:
@@ -131,13 +138,14 @@ def versus_snnkart(
     }
     t = sanafe["terms_pj"]
     pairs = [
-        ("synaptic ops", "synapse: 35.5 pJ per event (SANA-FE) vs 23.6 pJ per synaptic op "
-         "(Davies Table 2, pre-silicon)", t["synapse: synaptic events x 35.5"]),
-        ("neuron updates", "soma: 51.2 pJ access for every neuron and step + 21.6 pJ per "
-         "update (SANA-FE) vs 81 pJ per neuron update (Davies, active)",
+        ("synaptic ops", "SANA-FE 35.5 pJ per dense synaptic event; snnkart "
+         f"{_prices(chip_terms, 'synaptic ops')} per synaptic op",
+         t["synapse: synaptic events x 35.5"]),
+        ("neuron updates", "SANA-FE 51.2 pJ access for every neuron and step + 21.6 pJ per "
+         f"update; snnkart {_prices(chip_terms, 'neuron updates')} per neuron and step",
          t["soma: neuron accesses x 51.2"] + t["soma: neuron updates x 21.6"]),
-        ("spikes", "69.3 pJ per spike fired + 111 pJ per packet + hops (SANA-FE) vs 1.7 pJ "
-         "per within-tile spike (Davies)",
+        ("spikes", "SANA-FE 69.3 pJ per spike fired + 111 pJ per packet to another core + "
+         f"hops; snnkart {_prices(chip_terms, 'spikes')} per spike",
          t["soma: spikes fired x 69.3"] + t["network: packets x 111"] + t["network: hops"]),
     ]  # fmt: skip
     rows = [
