@@ -28,7 +28,9 @@ from typing import Any
 import numpy as np
 
 from snnkart.backends.lava_params import lava_layers
-from snnkart.backends.loading import LoadedPolicy, load_policy
+from snnkart.backends.loading import load_policy
+from snnkart.backends.network import ChainNetwork
+from snnkart.backends.quantize import FixedPointNetwork
 from snnkart.contract.deploy_inputs import DeployInputs, InputsError
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import SnnCounts
@@ -53,36 +55,15 @@ only: SANA-FE takes about 5 ms per env step, and the replay already runs them al
 
 
 def network_job(
-    policy: LoadedPolicy, inputs: DeployInputs
+    chain: ChainNetwork, fixed: FixedPointNetwork | None, inputs: DeployInputs
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """The job for :mod:`snnkart.energy.sanafe_worker`: per layer its LIF parameters and the
-    arrays (biases, weights, the current and the raster aligned to Lava's pipeline)."""
-    chain, arithmetic = policy.chain, inputs.arithmetic
-    arrays: dict[str, np.ndarray] = {}
-    layers = []
-    if arithmetic == "float32":
-        for i, layer in enumerate(chain.layers):
-            layers.append({"n": layer.size, "threshold": float(layer.threshold[0]),
-                           "leak_decay": float(layer.beta[0]),
-                           "input_decay": 0.0 if layer.alpha is None else float(layer.alpha[0])})  # fmt: skip
-            arrays[f"bias{i}"] = np.zeros(layer.size) if i == 0 else layer.bias.astype(np.float64)
-            if i:
-                arrays[f"weight{i}"] = layer.weight.astype(np.float64)
+    arrays (biases, weights, the current and the raster aligned to Lava's pipeline) in the
+    deployment's arithmetic (``fixed`` needs the quantised network)."""
+    if inputs.arithmetic == "float32":
+        layers, arrays = _float32_layers(chain)
     else:
-        fixed = arithmetic == "fixed"
-        unit = 64.0 if fixed else 1.0  # Lava's v is in 1/64 of a weight unit (ACT_SHIFT)
-        one = 4096.0 if fixed else 1.0
-        params = lava_layers(
-            chain, "fixed" if fixed else "float64", policy.fixed if fixed else None
-        )
-        for i, p in enumerate(params):
-            layers.append({"n": chain.sizes[i], "threshold": float(p.vth),
-                           "leak_decay": (one - p.dv) / one,
-                           "input_decay": (one - p.du - (1 if fixed else 0)) / one})  # fmt: skip
-            bias = np.asarray(p.bias_mant, dtype=np.float64) * 2.0**p.bias_exp
-            arrays[f"bias{i}"] = bias / unit
-            if p.weight is not None:
-                arrays[f"weight{i}"] = np.asarray(p.weight, dtype=np.float64)
+        layers, arrays = _lava_layers(chain, fixed if inputs.arithmetic == "fixed" else None)
     depth = len(chain.sizes) - 1
     arrays["current"] = inputs.current.astype(np.float64)
     arrays["raster"] = _aligned(inputs, depth)
@@ -90,6 +71,39 @@ def network_job(
            "modes": ["replay", "chain"], "neurons_per_core": NEURONS_PER_CORE,
            "env_steps": {"chain": CHECK_ENV_STEPS}}  # fmt: skip
     return job, arrays
+
+
+def _float32_layers(chain: ChainNetwork) -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
+    """torch's neuron: ``v = beta v + W s + b`` (layer 0's bias is in the host's current)."""
+    layers, arrays = [], {}
+    for i, layer in enumerate(chain.layers):
+        alpha = 0.0 if layer.alpha is None else float(layer.alpha[0])
+        layers.append({"n": layer.size, "threshold": float(layer.threshold[0]),
+                       "leak_decay": float(layer.beta[0]), "input_decay": alpha})  # fmt: skip
+        arrays[f"bias{i}"] = np.zeros(layer.size) if i == 0 else layer.bias.astype(np.float64)
+        if i:
+            arrays[f"weight{i}"] = layer.weight.astype(np.float64)
+    return layers, arrays
+
+
+def _lava_layers(
+    chain: ChainNetwork, fixed: FixedPointNetwork | None
+) -> tuple[list[dict[str, Any]], dict[str, np.ndarray]]:
+    """Lava's parameters (:func:`snnkart.backends.lava_params.lava_layers`): fixed point in
+    integer weight units (Lava's v / 64; decays over 4096, u's with Lava's offset of 1), or
+    float64 as they are."""
+    unit, one, offset = (64.0, 4096.0, 1) if fixed is not None else (1.0, 1.0, 0)
+    layers, arrays = [], {}
+    params = lava_layers(chain, "fixed" if fixed is not None else "float64", fixed)
+    for i, p in enumerate(params):
+        layers.append({"n": chain.sizes[i], "threshold": float(p.vth),
+                       "leak_decay": (one - p.dv) / one,
+                       "input_decay": (one - p.du - offset) / one})  # fmt: skip
+        bias = np.asarray(p.bias_mant, dtype=np.float64) * 2.0**p.bias_exp
+        arrays[f"bias{i}"] = bias / unit
+        if p.weight is not None:
+            arrays[f"weight{i}"] = np.asarray(p.weight, dtype=np.float64)
+    return layers, arrays
 
 
 def _aligned(inputs: DeployInputs, depth: int) -> np.ndarray:
@@ -125,7 +139,9 @@ def sanafe_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts,
         return {"available": False, "reason": f"the NIR file {record.nir_file} is not there"}
     try:
         inputs = DeployInputs.load(deploy_dir if deploy_dir.is_dir() else deploy_dir.parent)
-        job, arrays = network_job(load_policy(nir_path), inputs)
+        policy = load_policy(nir_path)
+        fixed = policy.fixed if inputs.arithmetic == "fixed" else None
+        job, arrays = network_job(policy.chain, fixed, inputs)
         result = run_sanafe(job, arrays, python)
     except (InputsError, SnnkartError) as exc:
         return {"available": False, "reason": str(exc)}
