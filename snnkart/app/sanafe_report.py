@@ -14,8 +14,8 @@ recorded current. Two runs:
 
 Units: the fixed-point network in Lava's integer units (v / 64, as SANA-FE truncates v to
 1/64 toward zero, and fires on v > threshold as Lava does: bit-exact but for Lava's 24-bit
-wrap-around); float64 and float32 in their own units, where SANA-FE's 1/64 truncation of v
-differs from Lava's arithmetic.
+wrap-around); float64 and float32 scaled by 2**12 (:data:`FLOAT_SCALE`), where SANA-FE's
+truncation of v and its double precision still differ from Lava's float64 and torch's float32.
 """
 
 from __future__ import annotations
@@ -49,6 +49,10 @@ from snnkart.errors import SnnkartError
 
 NEURONS_PER_CORE = 512
 """A layer's LIF neurons per core; its replay inputs share the core (Loihi: 1,024 per core)."""
+FLOAT_SCALE = 2.0**12
+"""The float arithmetics' values (weights, biases, thresholds, currents) times this power of
+two, exactly, so SANA-FE's truncation of v to 1/64 is 2**-18 of a unit, not 1/64 of the
+threshold."""
 CHECK_ENV_STEPS = 500
 """The chain check (and the latency, when it reproduces the spikes) runs the first env steps
 only: SANA-FE takes about 5 ms per env step, and the replay already runs them all."""
@@ -64,8 +68,12 @@ def network_job(
         layers, arrays = _float32_layers(chain)
     else:
         layers, arrays = _lava_layers(chain, fixed if inputs.arithmetic == "fixed" else None)
+    scale = 1.0 if inputs.arithmetic == "fixed" else FLOAT_SCALE
+    for layer in layers:
+        layer["threshold"] *= scale
+    arrays = {k: v * scale for k, v in arrays.items()}
     depth = len(chain.sizes) - 1
-    arrays["current"] = inputs.current.astype(np.float64)
+    arrays["current"] = inputs.current.astype(np.float64) * scale
     arrays["raster"] = _aligned(inputs, depth)
     job = {"layers": layers, "rows": inputs.num_steps + depth, "steps": inputs.num_steps,
            "modes": ["replay", "chain"], "neurons_per_core": NEURONS_PER_CORE,
