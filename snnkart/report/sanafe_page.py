@@ -36,8 +36,9 @@ def sanafe_lines(report: dict[str, Any]) -> list[str]:
         + (
             "reproduces every recorded spike."
             if check["reproduces"]
-            else f"{check['mismatched_logical_neuron_steps']} neuron-steps per layer differ (it "
-            "truncates v to 1/64 of a weight unit, as Loihi's fixed point, not Lava's float)."
+            else f"{check['mismatched_logical_neuron_steps']} neuron-steps per layer differ "
+            "(SANA-FE truncates v to 1/64 of a unit, keeps the current u unrounded and never "
+            "reset, and has no 24-bit wrap-around); the replay above uses the recorded spikes."
         ),
         f"On-chip latency per inference: {lat['on_chip_s_per_inference'] * 1e6:.1f} µs for "
         f"{lat['steps_per_inference']} time steps, {lat['fraction_of_control_period']:.2%} of "
