@@ -8,6 +8,7 @@ The SANA-FE tests need the ``sanafe`` extra (``pip install 'snnkart[sanafe]'``, 
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -183,3 +184,22 @@ def test_a_sanafe_failure_is_one_clear_error(sanafe_py: str) -> None:
               "raster": np.zeros((1, 1, n), dtype=bool)}  # fmt: skip
     with pytest.raises(SanafeError, match=r"status 1 .*Exceeded maximum neurons per core"):
         run_sanafe(job, arrays, sanafe_py)
+
+
+def test_a_missing_or_broken_inputs_npz_is_named_in_the_report(
+    deployed: Path, tmp_path: Path
+) -> None:
+    """A deployment from before inputs.npz, or a damaged one: the section says which file and
+    to deploy again (SANA-FE is not started)."""
+    shutil.copyfile(deployed / "deploy.json", tmp_path / "deploy.json")
+    record = DeployRecord.read(tmp_path / "deploy.json")
+    snn = SnnCounts.of_deploy(record)
+    section = sanafe_section(record, tmp_path, snn, find=lambda: "/nonexistent/python")
+    assert section["available"] is False
+    assert section["reason"] == (
+        f"no {tmp_path / 'inputs.npz'}: the deployment was run before snnkart recorded its "
+        "inputs; run snnkart deploy --out DIR again"
+    )
+    (tmp_path / "inputs.npz").write_bytes(b"not a zip file")
+    section = sanafe_section(record, tmp_path, snn, find=lambda: "/nonexistent/python")
+    assert section["reason"].startswith(f"{tmp_path / 'inputs.npz'}: not a readable inputs.npz")

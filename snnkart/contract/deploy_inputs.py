@@ -27,6 +27,7 @@ policy at T = 8 (3,528 env steps, current encoding) takes 0.8 MB: 0.56 MB of
 
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
@@ -130,7 +131,7 @@ class DeployInputs:
                     sizes=sizes, num_steps=t, depth=depth,
                     first_seed=seed, arithmetic=str(f["arithmetic"]), backend=str(f["backend"]),
                 )  # fmt: skip
-        except (OSError, KeyError, ValueError) as exc:
+        except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
             if isinstance(exc, InputsError):
                 raise
             raise InputsError(
