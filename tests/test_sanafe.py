@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from snnkart.app.report import build_report
 from snnkart.app.sanafe_report import sanafe_section
 from snnkart.backends.loading import load_policy
 from snnkart.backends.reference import LavaFixedChain, NIRReference
@@ -203,3 +204,14 @@ def test_a_missing_or_broken_inputs_npz_is_named_in_the_report(
     (tmp_path / "inputs.npz").write_bytes(b"not a zip file")
     section = sanafe_section(record, tmp_path, snn, find=lambda: "/nonexistent/python")
     assert section["reason"].startswith(f"{tmp_path / 'inputs.npz'}: not a readable inputs.npz")
+
+
+def test_report_json_carries_the_sanafe_entry(deployed: Path, sanafe_py: str) -> None:
+    """``snnkart report``'s record holds SANA-FE's figures beside its own, and validates."""
+    import jsonschema
+
+    report = build_report(deployed, None, ["loihi1", "horowitz45_fp32_sram"])
+    section = report["sanafe"]
+    assert section["available"] and section["lif_check"]["reproduces"]
+    schema = json.loads((ROOT / "snnkart/report/report.schema.json").read_text())
+    jsonschema.validate({**report, "figures": []}, schema)
