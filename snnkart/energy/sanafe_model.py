@@ -45,7 +45,7 @@ SANAFE_PJ = {
     "update_neuron": 21.6,  # l. 45: when it has input, a non-zero potential or a bias
     "spike_out": 69.3,  # l. 47: per spike fired
     "dense_synapse": 35.5,  # l. 73: per synaptic event (spike x fan-out)
-    "message_out": 111.0,  # l. 89: per packet, one per spike and destination core
+    "message_out": 111.0,  # l. 88: per packet, one per spike and destination core
 }
 """SANA-FE's Loihi prices (pJ), calibrated against measured Loihi dynamic energy (TCAD 2025);
 hops cost 3.0 pJ east-west and 4.2 pJ north-south (l. 20-27); dendrites and message input 0."""
