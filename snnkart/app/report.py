@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from snnkart.app.reporter import Reporter
+from snnkart.app.sanafe_report import sanafe_section
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.records import Reading, RecordError, from_data, to_data
 from snnkart.energy.break_even import break_even
@@ -368,6 +369,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         "sweep": None
         if sweep is None
         else _sweep(sweep, chips[0], host_profile or _memory_first(digital)[0], digital),
+        "sanafe": sanafe_section(record, deploy_dir, snn),  # the second chip model
     }
 
 

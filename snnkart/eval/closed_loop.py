@@ -28,6 +28,7 @@ from snnkart import faults
 from snnkart.backends.base import SpikeCounts
 from snnkart.backends.loading import load_policy
 from snnkart.backends.registry import BACKENDS
+from snnkart.contract.deploy_inputs import INPUTS_FILE, DeployInputs
 from snnkart.contract.deploy_record import (
     COUNTS_NOTE,
     DEPLOY_SCHEMA,
@@ -49,6 +50,7 @@ from snnkart.errors import DeployError, DeployWriteError, ParityError
 from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
 from snnkart.eval.parity import CheckedPredictor, check_parity, open_backends
 from snnkart.eval.policy_env import TrackChoice, make_policy_env, resolve_track
+from snnkart.eval.recorded import record_inputs, recorded_inputs
 from snnkart.eval.request import DeployRequest
 
 
@@ -83,6 +85,8 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         t0 = time.perf_counter()
         primary, exact, float32 = open_backends(policy, backend, request.arithmetic, seed)
         stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
+        # inputs.npz: what entered the chip and what each layer sent, window by window
+        recorder = record_inputs(primary) if out_dir is not None else None
         run = _Run(CheckedPredictor(primary, exact, float32), time.perf_counter() - t0)
         run.play(gym_env, request.episodes, seed, on_step, on_episode)
     record = DeployRecord(
@@ -104,8 +108,8 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         versions=manifest.versions,
         episodes=run.per_episode,
     )
-    if out_dir is not None:
-        _write(out_dir / "deploy.json", record)
+    if out_dir is not None and recorder is not None:
+        _write(out_dir, record, recorded_inputs(primary, recorder, seed))
     check_parity(record)
     return record
 
@@ -192,10 +196,18 @@ def _manifest_summary(manifest: Manifest) -> ManifestSummary:
     )
 
 
-def _write(path: Path, record: DeployRecord) -> None:
+def _write(out_dir: Path, record: DeployRecord, inputs: DeployInputs) -> None:
+    """``deploy.json`` and, beside it, ``inputs.npz`` (written first: a deploy.json is there
+    only when its inputs are)."""
+    path = out_dir / "deploy.json"
     try:
         faults.fault_point("deploy-write")
-        record.write(path)
+        inputs.save(out_dir / INPUTS_FILE)
+        try:
+            record.write(path)
+        except OSError:
+            (out_dir / INPUTS_FILE).unlink(missing_ok=True)  # no inputs without their record
+            raise
     except OSError as exc:
         raise DeployWriteError(
             f"the run finished but {path} could not be written: {exc.strerror or exc}; "

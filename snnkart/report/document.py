@@ -10,6 +10,8 @@ from typing import Any
 
 from snnkart.io import write_bytes, write_json, write_text
 from snnkart.report import plots
+from snnkart.report.sanafe_page import TITLE as SANAFE_TITLE
+from snnkart.report.sanafe_page import sanafe_lines, sanafe_rows
 
 INCLUDES = (
     "Chip: synaptic operations (spikes x fan-out between spiking layers), neuron updates (every "
@@ -263,6 +265,8 @@ def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
         "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
         "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
         "## Totals, footprint and latency", "", _md_table(_facts_rows(report)),
+        f"## {SANAFE_TITLE}", "", *[f"- {x}" for x in sanafe_lines(report)], "",
+        _md_table(sanafe_rows(report)),
         "## What the estimate includes", "", *[f"- {x}" for x in INCLUDES], "",
         "## What it leaves out", "", *[f"- {x}" for x in LEAVES_OUT], "",
         "## References", "", *[f"- {x}" for x in REFERENCES], "",
@@ -314,7 +318,8 @@ def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
     lists = {
         title: "<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in items) + "</ul>"
         for title, items in (("Verdict", _verdict(report)), ("What the estimate includes", INCLUDES),
-                             ("What it leaves out", LEAVES_OUT), ("References", REFERENCES))
+                             ("What it leaves out", LEAVES_OUT), ("References", REFERENCES),
+                             (SANAFE_TITLE, sanafe_lines(report)))
     }  # fmt: skip
     intro = md_sections.split("\n## ")[0].split("\n", 2)[-1]
     intro = html.escape(intro.replace("**", "").replace("`", "").strip())
@@ -327,6 +332,7 @@ def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
         f"<h2>Counts per inference (measured)</h2>{_html_table(_counts_rows(report), 'counts')}"
         f"<h2>Totals, footprint and latency</h2>{_html_table(_facts_rows(report), 'facts')}"
         f"<h2>Figures</h2>{figures}"
+        f"<h2>{SANAFE_TITLE}</h2>{lists[SANAFE_TITLE]}{_html_table(sanafe_rows(report), 'sanafe')}"
         f"<h2>What the estimate includes</h2>{lists['What the estimate includes']}"
         f"<h2>What it leaves out</h2>{lists['What it leaves out']}"
         f"<h2>References</h2>{lists['References']}</body></html>"
