@@ -27,16 +27,16 @@ policy at T = 8 (3,528 env steps, current encoding) takes 0.8 MB: 0.56 MB of
 
 from __future__ import annotations
 
+import io
 import zipfile
 from dataclasses import dataclass
 from itertools import pairwise
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from snnkart.errors import SnnkartError
-from snnkart.io import atomic_path
+from snnkart.io import write_bytes
 
 INPUTS_SCHEMA = "snnkart/inputs/v1"
 INPUTS_FILE = "inputs.npz"
@@ -90,12 +90,13 @@ class DeployInputs:
 
     def save(self, path: Path) -> None:
         """Write the record to ``path`` atomically (no partial file on a full disk)."""
-        with atomic_path(path) as tmp, tmp.open("wb") as f:
-            self._save(f)
+        buffer = io.BytesIO()  # built in memory: a full disk fails the one write below only
+        self._save(buffer)
+        write_bytes(path, buffer.getvalue())
 
-    def _save(self, f: Any) -> None:
+    def _save(self, buffer: io.BytesIO) -> None:
         np.savez_compressed(
-            f,
+            buffer,
             schema=np.array(INPUTS_SCHEMA),
             current=_held(self.current),
             raster=np.packbits(self.raster.astype(bool), axis=-1),
