@@ -244,8 +244,9 @@ def sections(report: dict[str, Any], figure_names: list[str]) -> list[Section]:
         ("Verdict per pair", [
             {"kind": "table", "id": "pairs", "rows": first.pair_rows(report)},
             {"kind": "p", "text": f"Dynamic: the chip's and the host's operations only. With "
-             "static: plus each side's published static power over the control period. "
-             f"Intervals: {report['uncertainty']['rule']}."},
+             "static: plus each side's published static power over the control period "
+             f"({first.pairs(report)[0]['static']['note']}). Intervals: "
+             f"{report['uncertainty']['rule']}."},
             {"kind": "ul", "items": _verdict(report)}]),
         ("Deployment", [{"kind": "p", "text": _deployment(report)}]),
         ("Energy per inference and per episode, with the task", [
