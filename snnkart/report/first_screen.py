@@ -75,15 +75,17 @@ def sentence(report: dict[str, Any]) -> str:
     static_wins = sum(r < 1 for r in with_static)
     period = rows[0]["static"]["control_period_s"] * 1e3
     snn_ok = pct(report["snn"]["task"]["success_rate"])
+    ann_said = ann_success(report, best)
+    ann_said = "the ANN was not run" if ann_said == "not run" else f"ANN success {ann_said}"
     return (
         f"Dynamic energy only, the SNN (success {snn_ok}) is more likely than not to cost less "
         f"than the {label} in {wins} of {len(rows)} chip/target pairs; in its best pair, on "
-        f"{best['snn_profile']} against the ANN on {best['ann_profile']} (ANN success "
-        f"{ann_success(report, best)}), it costs {_interval(best)}, P(SNN cheaper) "
+        f"{best['snn_profile']} against the ANN on {best['ann_profile']} ({ann_said}), it "
+        f"costs {_interval(best)}, P(SNN cheaper) "
         f"{_p(best):.2f}; "
         f"with static power over the {period:.1f} ms control period it costs less in "
         f"{static_wins} of {len(with_static)}"
-        + (f" (best {times(min(with_static))})." if with_static else ".")
+        + (f" (lowest ratio {times(min(with_static))})." if with_static else ".")
     )
 
 
