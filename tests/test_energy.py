@@ -4,6 +4,7 @@ every number of report.json recomputed as count x price, and the report as a bro
 from __future__ import annotations
 
 import base64
+import html
 import io
 import json
 import math
@@ -421,7 +422,8 @@ def test_nir_info_and_the_report_count_the_same_parameters(report: Path) -> None
     assert f"{info['weight_count']:,} weights and biases" in text
     md = (report / "report.md").read_text()
     assert f"| footprint | weights and biases | {info['weight_count']:,} |" in md
-    assert "{'" not in md and not re.search(r"\d\.\d{7,}", md)  # no dicts, no 16-digit floats
+    numbers = re.sub(r"doi:\S+", "", md)  # the price table's sources cite DOIs (10.1109/...)
+    assert "{'" not in md and not re.search(r"\d\.\d{7,}", numbers)  # no dicts, 16-digit floats
 
 
 @pytest.mark.timeout(600)
@@ -504,6 +506,9 @@ _PROBE = """<script>window.addEventListener('load', () => {
     out.figures[f.id] = [r.left, r.top, r.width, r.height];
   }
   for (const img of document.images) out.images.push(img.complete && img.naturalWidth > 0);
+  const box = (e) => { const r = e.getBoundingClientRect(); return [r.top, r.bottom]; };
+  out.verdict = box(document.getElementById('verdict'));
+  out.headings = [...document.querySelectorAll('h2, table')].map(box);
   document.body.setAttribute('data-probe', JSON.stringify(out));
 });</script>"""
 
@@ -528,11 +533,14 @@ def test_the_html_report_in_a_real_browser(report: Path, tmp_path: Path) -> None
     assert not re.search(r"https?://", page), "the page must not reference the network"
     probed = tmp_path / "probed.html"
     probed.write_text(page.replace("</body>", _PROBE + "</body>"))
-    width = 1200  # the same layout width for the DOM probe and the screenshot
-    dom = _chromium(f"--window-size={width},900", "--dump-dom", probed.as_uri()).stdout
+    width, screen = 1280, 900  # the same layout width for the DOM probe and the screenshot
+    dom = _chromium(f"--window-size={width},{screen}", "--dump-dom", probed.as_uri()).stdout
     probe = json.loads(re.search(r'data-probe="([^"]*)"', dom).group(1).replace("&quot;", '"'))
-    for table in ("headline", "counts"):
+    for table in ("pairs", "headline", "counts", "prices", "ledger-0"):
         assert re.search(rf'<table id="{table}">.*?<td>', dom, re.S), table
+    verdict = re.search(r'<p id="verdict">(.*?)</p>', dom).group(1)
+    for said in ("Dynamic energy only", "P(SNN cheaper)", "with static power", "success"):
+        assert said in verdict, verdict
     assert probe["images"] and all(probe["images"]), "an embedded image did not decode"
     for src in re.findall(r'src="data:image/png;base64,([^"]+)"', page):
         Image.open(io.BytesIO(base64.b64decode(src))).verify()
@@ -540,12 +548,44 @@ def test_the_html_report_in_a_real_browser(report: Path, tmp_path: Path) -> None
     shot = tmp_path / "shot.png"
     _chromium(f"--window-size={width},{height}", f"--screenshot={shot}", probed.as_uri())
     pixels = np.asarray(Image.open(shot).convert("L"), dtype=np.float64)
-    assert set(probe["figures"]) >= {"fig-firing_rates", "fig-breakdown", "fig-sensitivity",
-                                     "fig-tradeoff", "fig-raster"}  # fmt: skip
+    assert set(probe["figures"]) >= {"fig-verdict", "fig-firing_rates", "fig-breakdown",
+                                     "fig-sensitivity", "fig-tradeoff", "fig-raster"}  # fmt: skip
+    # the first screen answers: the verdict sentence, then its whole chart, before any heading
+    # or table, all within the first 900 px at 1280 wide, and the chart drawn there
+    _, chart_top, _, chart_height = probe["figures"]["fig-verdict"]
+    assert probe["verdict"][0] < chart_top < min(top for top, _ in probe["headings"])
+    assert probe["verdict"][1] < screen and chart_top + chart_height <= screen, probe
+    top = pixels[:screen]
+    assert top.std() > 10 and (top < 128).mean() > 0.01, "the first screen looks blank"
     for name, (left, top, w, h) in probe["figures"].items():
         region = pixels[int(top) : int(top + h), int(left) : int(left + w)]
         assert region.size > 10_000, (name, region.shape)
         assert region.std() > 10 and (region < 128).mean() > 0.005, f"{name} looks blank"
+
+
+def _words_and_numbers(text: str) -> tuple[list[str], list[str]]:
+    """A page's section titles and every number it shows, in order."""
+    numbers = re.findall(r"\d+(?:[.,]\d+)*(?:e[+-]\d+)?", text)
+    return re.findall(r"^## (.+)$", text, re.M), numbers
+
+
+@pytest.mark.timeout(600)
+def test_markdown_and_html_carry_the_same_sections_and_numbers(report: Path) -> None:
+    md = (report / "report.md").read_text()
+    page = (report / "report.html").read_text()
+    page = re.sub(r"<style>.*?</style>|<img [^>]*>", "", page, flags=re.S)
+    page = re.sub(r"<h2>(.*?)</h2>", r"\n## \1\n", page)  # a section title, as in Markdown
+    page = html.unescape(re.sub(r"<[^>]+>", " ", page))
+    md = re.sub(r"!\[(.*?)\]\(\w+\.png\)", r"\1", md)  # a figure: its caption, as in the page
+    md_titles, md_numbers = _words_and_numbers(md)
+    html_titles, html_numbers = _words_and_numbers(page)
+    assert md_titles == html_titles and "Prices" in md_titles and "Verdict per pair" in md_titles
+    assert md_numbers == html_numbers and len(md_numbers) > 1000
+    # no duplicate rows: the same-width ANN's rows equal the run's and are merged, and said so
+    table = md.split("## Energy per inference and per episode")[1].split("\n## ")[0]
+    cells = [line.split(" | ") for line in table.splitlines() if line.startswith("| ")][1:]
+    energies = [(c[0], c[1], c[3], c[4]) for c in cells]  # SNN on, its nJ, ANN on, its nJ
+    assert len(energies) == len(set(energies)) == 15 and "merged into them" in md
 
 
 def test_plot_raster_shows_one_step_of_every_layer(deployed: Path, tmp_path: Path) -> None:

@@ -46,3 +46,25 @@ def test_totals_footprint_and_latency_are_rows_with_sensible_digits() -> None:
     assert rows[("footprint", "weights and biases")] == "6,281"
     assert rows[("latency", "ms per env step")] == "0.707"
     assert rows[("latency", "backend")] == "nir-ref"
+
+
+def _pair(chip: str, p: float, median: float, static: float) -> dict[str, Any]:
+    spread = {"median": median, "p05": median / 2, "p95": median * 2}
+    return {"ann": "run", "snn_profile": chip, "ann_profile": "arm", "ann_success_rate": 0.9,
+            "ann_success": "measured: the float ANN", "uncertainty": {"p_snn_cheaper": p,
+            "ratio": spread}, "static": {"ratio": static, "control_period_s": 1 / 60}}  # fmt: skip
+
+
+def test_the_verdict_sentence_counts_the_pairs_and_names_the_best() -> None:
+    """More likely than not cheaper means P > 0.5; the best pair has the highest P, then the
+    lowest median; with static power the pairs below 1 are counted apart."""
+    from snnkart.report.first_screen import sentence
+
+    report = {"ann": {"run": {"label": "ANN run"}}, "snn": {"task": {"success_rate": 1.0}},
+              "comparisons": [_pair("a", 0.5, 0.9, 2.0), _pair("b", 0.93, 0.6, 0.8),
+                              _pair("c", 0.93, 0.4, 3.0)]}  # fmt: skip
+    said = sentence(report)
+    assert "cost less than the ANN run in 2 of 3 chip/target pairs" in said
+    assert "on c against the ANN on arm (ANN success 90 %)" in said
+    assert "a median 0.4x the ANN's energy (90 %: 0.2x-0.8x), P(SNN cheaper) 0.93" in said
+    assert "16.7 ms control period it costs less in 1 of 3 (lowest ratio 0.8x)" in said

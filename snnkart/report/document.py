@@ -9,59 +9,17 @@ from pathlib import Path
 from typing import Any
 
 from snnkart.io import write_bytes, write_json, write_text
+from snnkart.report import first_screen as first
 from snnkart.report import plots
+from snnkart.report.ledger import ledger, price_rows
 from snnkart.report.sanafe_page import TITLE as SANAFE_TITLE
 from snnkart.report.sanafe_page import sanafe_lines, sanafe_rows
+from snnkart.report.texts import INCLUDES, LEAVES_OUT, REFERENCES
 
-INCLUDES = (
-    "Chip: synaptic operations (spikes x fan-out between spiking layers), neuron updates (every "
-    "neuron at every SNN step, as Loihi clocks them), spikes; the Lava pipeline's fill and drain "
-    "steps (L per action) are priced too; routing: spikes x the tile hops of the layers' "
-    "placement (each layer on cores of its own) where the chip prices a hop.",
-    "Host link: the bits the deployment sends per action (T x n1 input currents in, the last "
-    "layer's T x n spike flags out), priced per bit where a figure or bound exists.",
-    "Host, priced as digital operations on the host profile: observation normalisation, the "
-    "first layer's input current W1 z + b1 (once per action), the readout from spike counts, "
-    "the decoding, and reading those weights from the memory array that holds the host's own "
-    "weights (Horowitz's 8 KB / 32 KB / 1 MB SRAM rows, DRAM beyond).",
-    "ANN: the same normalisation and decoding, every layer's multiply-accumulates and biases, "
-    "and one read per weight from the array that holds the ANN's own weights. The ANN runs on "
-    "the host, so it has no link.",
-    "Static power x the control period (one action per env step, 60 Hz), a term of its own on "
-    "each side, where a figure is published; report.json gives the verdict with and without it "
-    "and the average power at the control rate.",
-)
-LEAVES_OUT = (
-    "No power was measured: Lava's CPU simulator has no power model; every number is a count "
-    "from the deployment times a published, derived or assumed per-operation price.",
-    "Loihi 1's per-operation energies are pre-silicon simulations, the synaptic one a minimum "
-    "(Davies et al. 2018; SANA-FE's silicon-calibrated figures are the high ends); Loihi 2 has "
-    "no published per-operation figures: its ranges are derived from Hala Point's totals.",
-    "Technology nodes differ (Loihi 14 nm and Intel 4, Horowitz's digital figures 45 nm): the "
-    "ratios compare published figures, not equal processes.",
-    "Static power is not published for the digital targets (the host's static power would add "
-    "alike to both sides), nor for SpiNNaker; TrueNorth's figure is all-in and includes it. "
-    "The ANN's activation functions (tanh) are not priced.",
-    "Weight reuse across inferences and caches are not modelled; memory-inclusive profiles "
-    "read every weight once per inference.",
-)
-REFERENCES = (
-    "Davies et al., Loihi: a neuromorphic manycore processor with on-chip learning, IEEE Micro "
-    "38(1):82-99, 2018 (Table 2, pre-silicon).",
-    "Horowitz, Computing's energy problem (and what we can do about it), ISSCC 2014.",
-    "Merolla et al., Science 2014 (TrueNorth: 26 pJ per synaptic event, measured, all-in).",
-    "Höppner et al., arXiv 1903.08941, 2019 (SpiNNaker 2 prototype), as encoded by "
-    "KerasSpiking's ModelEnergy.",
-    "Yik et al., The NeuroBench framework ..., Nat. Commun. 16:1545, 2025.",
-    "Dampfhoffer et al., Are SNNs really more energy-efficient than ANNs?, IEEE TETCI 7(3), 2023.",
-    "Yan et al., Reconsidering the energy efficiency of SNN inference, arXiv 2409.08290.",
-    "Intel/Sandia, Hala Point (1,152 Loihi 2), press release, April 2024.",
-    "Boyle et al., SANA-FE, IEEE TCAD 44(8):3165-3178, 2025 (Loihi figures calibrated on silicon).",
-    "Degnan et al. 2015 (ARM-class processor, 0.9 nJ per operation), as encoded by "
-    "KerasSpiking's ModelEnergy.",
-    "Paredes-Vallés et al., Science Robotics 2024 (Loihi idle power); lava-dl's PilotNet "
-    "benchmarks on Loihi 2 (static power).",
-)
+Block = dict[str, Any]
+"""One piece of a section: ``{"kind": "p" | "warn" | "ul" | "table" | "details" | "figure", ...}``,
+rendered alike to Markdown and to HTML."""
+Section = tuple[str, list[Block]]
 
 
 def _nj(pj: float) -> str:
@@ -70,14 +28,6 @@ def _nj(pj: float) -> str:
 
 def _uj(pj: float | None) -> str:
     return "-" if pj is None else f"{pj / 1e6:.3g}"
-
-
-def _pct(x: float | None) -> str:
-    return "-" if x is None else f"{100 * x:.0f} %"
-
-
-def _host(name: str) -> str:
-    return name if name.startswith("the ") else f"`{name}`"
 
 
 def _parity(deploy: dict[str, Any]) -> str:
@@ -91,32 +41,24 @@ def _parity(deploy: dict[str, Any]) -> str:
 
 
 def headline(report: dict[str, Any]) -> list[dict[str, str]]:
-    """The main table's rows: each SNN profile against each ANN profile, with both tasks."""
+    """The energy table's rows: each SNN profile against each ANN on each digital profile,
+    with both tasks; same-width ANN rows equal to the ANN run's are merged into them."""
     snn_task = report["snn"]["task"]
     rows = []
-    for c in report["comparisons"]:
-        ann = report["ann"][c["ann"]]
-        task = ann["task"]
+    for c in first.distinct(report):
         rows.append({
             "SNN on": c["snn_profile"], "SNN nJ/inference": _nj(c["snn_pj"]),
-            "ANN": ann["label"], "ANN on": c["ann_profile"], "ANN nJ/inference": _nj(c["ann_pj"]),
+            "ANN": report["ann"][c["ann"]]["label"], "ANN on": c["ann_profile"],
+            "ANN nJ/inference": _nj(c["ann_pj"]),
             "SNN/ANN": f"{c['ratio']:.3g}" if c["ratio"] is not None else "-",
             "SNN µJ/episode": f"{c['snn_per_episode_pj'] / 1e6:.3g}",
             "ANN µJ/episode": _uj(c["ann_per_episode_pj"]),
             "SNN µJ/return": _uj(c["snn_per_return_pj"]),
             "ANN µJ/return": _uj(c["ann_per_return_pj"]),
-            "SNN success": _pct(snn_task["success_rate"]),
-            "ANN success": _ann_success(c, task),
+            "SNN success": first.pct(snn_task["success_rate"]),
+            "ANN success": first.ann_success(report, c),
         })  # fmt: skip
     return rows
-
-
-def _ann_success(row: dict[str, Any], task: dict[str, Any] | None) -> str:
-    """The ANN's success on the row's profile; an int8 datapath's is the int8 ANN's, measured."""
-    if row.get("ann_success_rate") is None:
-        return _pct(task["success_rate"]) if task else "not run"
-    measured = "int8" in row.get("ann_success", "")
-    return _pct(row["ann_success_rate"]) + (" (int8, measured)" if measured else "")
 
 
 def _int8(report: dict[str, Any]) -> str:
@@ -128,62 +70,69 @@ def _int8(report: dict[str, Any]) -> str:
     agree = q["action_agreement"]
     return (f" The ANN run quantised to int8 (post-training, symmetric per tensor, calibrated "
             f"on {q['calibration']['observations']} observations of {q['calibration']['episodes']} "
-            f"other episodes) was driven on the same episodes: success {_pct(q['success_rate'])} "
+            f"other episodes) was driven on the same episodes: success {first.pct(q['success_rate'])} "
             f"(measured), mean return {q['mean_return']:.2f}, "
             f"{'-' if agree is None else f'{agree:.1%}'} of its actions equal the float "
             "ANN's; the int8 profiles' rows carry its task.")  # fmt: skip
 
 
 def _figures(report: dict[str, Any], trace: Any) -> dict[str, bytes]:
-    snn, net = report["snn"], report["network"]
-    figs = {"firing_rates": plots.firing_rates(snn["per_inference"]["firing_rates"], net["sizes"])}
-    primary = "run" if "run" in report["ann"] else "same_width"
-    energies: dict[str, dict[str, float]] = {}
-    for c in report["comparisons"]:
-        if c["ann"] == primary:
-            energies[f"SNN on {c['snn_profile']}"] = c["snn_breakdown_pj"]
-            energies[f"ANN on {c['ann_profile']}"] = c["ann_breakdown_pj"]
-    figs["breakdown"] = plots.breakdown(energies)
+    snn, net, d = report["snn"], report["network"], report["deploy"]
+    figs = {"verdict": plots.verdict(first.chart_rows(report), first.chart_legend(report)),
+            "firing_rates": plots.firing_rates(snn["per_inference"]["firing_rates"], net["sizes"])}  # fmt: skip
     sens = report["sensitivity"][0]
+    target = sens["ann_profile"]  # the fair baseline: the first memory-inclusive target
+    energies: dict[str, dict[str, float]] = {}
+    for c in first.pairs(report):
+        if c["ann_profile"] == target:
+            energies[f"SNN on {c['snn_profile']} (host on {target})"] = c["snn_breakdown_pj"]
+    for c in first.pairs(report):
+        energies.setdefault(f"ANN on {c['ann_profile']}", c["ann_breakdown_pj"])
+    figs["breakdown"] = plots.breakdown(energies)
     main = next(c for c in report["comparisons"] if c["snn_profile"] == sens["snn_profile"]
-                and c["ann_profile"] == sens["ann_profile"] and c["ann"] == "same_width")  # fmt: skip
+                and c["ann_profile"] == target and c["ann"] == "same_width")  # fmt: skip
     be = main["break_even"]
     fixed, var, ann_pj = be["fixed_pj"], be["per_density_pj"], be["ann_pj"]
-    curve = [(d / 20, (fixed + d / 20 * var) / ann_pj) for d in range(41)]
-    title = f"SNN on {sens['snn_profile']} vs same-width ANN on {sens['ann_profile']}"
+    curve = [(x / 20, (fixed + x / 20 * var) / ann_pj) for x in range(41)]
+    title = (f"One price at a time: SNN on {sens['snn_profile']} vs same-width ANN on {target} "
+             f"(ratio {main['ratio']:.3g}x)")  # fmt: skip
     figs["sensitivity"] = plots.sensitivity(sens["rows"], curve, be.get("density"), title)
     if report.get("sweep"):
         sw = report["sweep"]
-        figs["tradeoff"] = plots.tradeoff(sw["points"], sw["ann_64_64_pj"], sw["profile"])
+        figs["tradeoff"] = plots.tradeoff(sw["points"], sw["ann_64_64_pj"], sw["profile"],
+                                          _sweep_title(sw))  # fmt: skip
     if trace is not None:
         figs["raster"] = plots.raster(
             trace.raster, trace.membranes, trace.sizes, trace.thresholds,
-            f"env step {trace.env_step} of the episode of seed {trace.seed} "
-            f"(float32 reference; action {trace.action})",
+            f"env step {trace.env_step} of the episode of seed {trace.seed}, traced on the "
+            f"float32 reference (the deployment ran {d['backend']}, {d['precision']}); action "
+            f"{trace.action}",
         )  # fmt: skip
     return figs
 
 
-def _md_table(rows: list[dict[str, str]]) -> str:
-    if not rows:
-        return ""
-    head = list(rows[0])
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    lines += ["| " + " | ".join(str(r[h]) for h in head) + " |" for r in rows]
-    return "\n".join(lines) + "\n"
+def _sweep_title(sweep: dict[str, Any]) -> str:
+    commit = f" at commit {sweep['commit']}" if sweep.get("commit") else ""
+    return (f"Not this deployment: the runs of the sweep {Path(sweep['file']).name}{commit} "
+            f"({sweep['env']}), priced on {sweep['profile']}")  # fmt: skip
 
 
 def _counts_rows(report: dict[str, Any]) -> list[dict[str, str]]:
-    snn, net = report["snn"], report["network"]
-    per = snn["per_inference"]
-    rows = [
+    """Per layer: the policy's counts, the pipeline's fill/drain counts, and the neuron updates
+    priced (both)."""
+    per, sizes = report["snn"]["per_inference"], report["network"]["sizes"]
+    extra = per["pipeline_overhead"]
+    return [
         {"layer": f"{i + 1} ({n})", "spikes / inference": f"{per['spikes'][i]:.1f}",
          "firing rate": f"{100 * per['firing_rates'][i]:.1f} %",
          "synaptic ops (chip)": f"{per['synops_chip'][i]:.0f}",
-         "neuron updates": f"{per['neuron_updates'][i]:.0f}"}
-        for i, n in enumerate(net["sizes"])
+         "neuron updates": f"{per['neuron_updates'][i]:.0f}",
+         "fill/drain spikes": f"{extra['spikes'][i]:.2f}",
+         "fill/drain synaptic ops": f"{extra['synops_chip'][i]:.0f}",
+         "fill/drain neuron updates": f"{extra['neuron_updates'][i]:.0f}",
+         "neuron updates priced": f"{per['neuron_updates'][i] + extra['neuron_updates'][i]:.0f}"}
+        for i, n in enumerate(sizes)
     ]  # fmt: skip
-    return rows
 
 
 FACT_GROUPS = (
@@ -221,20 +170,16 @@ def _density(d: float) -> str:
     return f"{d:.2f}x" if d >= 0.1 else f"{d:.2g}x"
 
 
-def _times(ratio: float) -> str:
-    return f"{ratio:,.0f}x" if ratio >= 100 else f"{ratio:.3g}x"
-
-
 def _verdict(report: dict[str, Any]) -> list[str]:
     """One line per neuromorphic profile: the SNN's energy as a multiple of the primary ANN's on
     each digital profile, and the break-even spike density where there is one."""
-    primary = "run" if "run" in report["ann"] else "same_width"
-    label = report["ann"][primary]["label"]
+    key = first.primary(report)
+    label = report["ann"][key]["label"]
     lines = []
     for chip in dict.fromkeys(c["snn_profile"] for c in report["comparisons"]):
         parts = []
         for c in report["comparisons"]:
-            if c["ann"] != primary or c["snn_profile"] != chip or c["ratio"] is None:
+            if c["ann"] != key or c["snn_profile"] != chip or c["ratio"] is None:
                 continue
             be = c["break_even"]
             if be.get("density") is not None:
@@ -243,35 +188,118 @@ def _verdict(report: dict[str, Any]) -> list[str]:
                 note = "cannot win at any spike rate"
             else:  # its energy does not grow with its spikes and is below the ANN's
                 note = "wins at any spike rate"
-            parts.append(f"{_times(c['ratio'])} the {label} on {c['ann_profile']} ({note})")
+            parts.append(f"{first.times(c['ratio'])} the {label} on {c['ann_profile']} ({note})")
         lines.append(f"SNN on {chip}: " + "; ".join(parts) + ".")
     return lines
 
 
-def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
-    d, snn = report["deploy"], report["snn"]
-    out = ["# snnkart energy report", ""]
+CAPTIONS = {
+    "verdict": "Energy per inference, dynamic only: the SNN on each chip (its host work priced "
+    "on the target) against the ANN on each digital target; each profile with the evidence "
+    "grades of its prices.",
+    "firing_rates": "Firing rate per layer over the deployed episodes.",
+    "breakdown": "Energy per inference (log scale) and its parts, the SNN's host work priced on "
+    "the first memory-inclusive target.",
+    "sensitivity": "Secondary: the SNN/ANN ratio as one price at a time moves, and against "
+    "spike density (the joint interval is the verdict's).",
+    "tradeoff": "Accuracy against energy over a committed sparsity sweep (T, penalty, width): "
+    "that study's runs, not this deployment.",
+    "raster": "Spike raster and membrane traces of every layer for one env step, traced on the "
+    "float32 reference of the deployed policy.",
+}
+
+REPORT_FILES = ("report.json", "report.md", "report.html", *(f"{name}.png" for name in CAPTIONS))
+"""Every file :func:`write_report` may write."""
+
+
+def _first_section(report: dict[str, Any]) -> list[Block]:
+    """What the first screen holds: a warning if the SNN does not drive, the verdict sentence
+    and its chart."""
+    blocks: list[Block] = []
     if not report["drives"]:
-        out += [f"**WARNING: the spiking policy does not drive: success "
-                f"{_pct(snn['task']['success_rate'])} (< 80 %). The energy numbers below describe "
-                "a policy that fails its task; they are not a result.**", ""]  # fmt: skip
-    out += [
-        f"Deployment: `{d['file']}` ({d['backend']}, {d['precision']}), {d['env']}/{d['track']}, "
-        f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). "
-        f"Network {report['network']['n_in']} -> {report['network']['sizes']} -> "
-        f"{report['network']['n_out']}, T = {report['network']['num_steps']}. "
-        f"Host work priced on {_host(report['host_profile'])}. {_parity(d)}{_int8(report)}", "",
-        "## Verdict", "", *[f"- {line}" for line in _verdict(report)], "",
-        "## Energy per inference and per episode, with the task", "", _md_table(headline(report)),
-        "## Counts per inference (measured)", "", _md_table(_counts_rows(report)),
-        "## Totals, footprint and latency", "", _md_table(_facts_rows(report)),
-        f"## {SANAFE_TITLE}", "", *[f"- {x}" for x in sanafe_lines(report)], "",
-        _md_table(sanafe_rows(report)),
-        "## What the estimate includes", "", *[f"- {x}" for x in INCLUDES], "",
-        "## What it leaves out", "", *[f"- {x}" for x in LEAVES_OUT], "",
-        "## References", "", *[f"- {x}" for x in REFERENCES], "",
-        "Figures: " + ", ".join(f"`{n}.png`" for n in figure_names), "",
+        blocks.append({"kind": "warn", "text": (
+            f"WARNING: the spiking policy does not drive: success "
+            f"{first.pct(report['snn']['task']['success_rate'])} (< 80 %). The energy numbers "
+            "below describe a policy that fails its task; they are not a result.")})  # fmt: skip
+    blocks.append({"kind": "p", "id": "verdict", "text": first.sentence(report)})
+    blocks.append({"kind": "figure", "name": "verdict"})
+    return blocks
+
+
+def _deployment(report: dict[str, Any]) -> str:
+    d, net = report["deploy"], report["network"]
+    return (
+        f"Deployment: {d['file']} ({d['backend']}, {d['precision']}), {d['env']}/{d['track']}, "
+        f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). Network "
+        f"{net['n_in']} -> {net['sizes']} -> {net['n_out']}, T = {net['num_steps']}. Host work "
+        f"priced on {report['host_profile']}. {_parity(d)}{_int8(report)}"
+    )
+
+
+def sections(report: dict[str, Any], figure_names: list[str]) -> list[Section]:
+    """The page, in order; the first section (untitled) is the first screen."""
+    merged = first.merged_note(report)
+    return [
+        ("", _first_section(report)),
+        ("Verdict per pair", [
+            {"kind": "table", "id": "pairs", "rows": first.pair_rows(report)},
+            {"kind": "p", "text": f"Dynamic: the chip's and the host's operations only. With "
+             "static: plus each side's published static power over the control period "
+             f"({first.pairs(report)[0]['static']['note']}). Intervals: "
+             f"{report['uncertainty']['rule']}."},
+            {"kind": "ul", "items": _verdict(report)}]),
+        ("Deployment", [{"kind": "p", "text": _deployment(report)}]),
+        ("Energy per inference and per episode, with the task", [
+            {"kind": "table", "id": "headline", "rows": headline(report)},
+            *([{"kind": "p", "text": merged}] if merged else [])]),
+        ("Counts per inference (measured)", [
+            {"kind": "table", "id": "counts", "rows": _counts_rows(report)}]),
+        ("Totals, footprint and latency", [
+            {"kind": "table", "id": "facts", "rows": _facts_rows(report)}]),
+        ("Prices", [{"kind": "details", "summary": "Every price used: value, range, evidence "
+                     "tag, source", "id": "prices", "rows": price_rows(report)}]),
+        ("Ledger: every term, count x price", [
+            {"kind": "details", "summary": title, "id": f"ledger-{k}", "rows": rows}
+            for k, (title, rows) in enumerate(ledger(report))]),
+        ("Figures", [{"kind": "figure", "name": n} for n in figure_names if n != "verdict"]),
+        (SANAFE_TITLE, [{"kind": "ul", "items": sanafe_lines(report)},
+                        {"kind": "table", "id": "sanafe", "rows": sanafe_rows(report)}]),
+        ("What the estimate includes", [{"kind": "ul", "items": list(INCLUDES)}]),
+        ("What it leaves out", [{"kind": "ul", "items": list(LEAVES_OUT)}]),
+        ("References", [{"kind": "ul", "items": list(REFERENCES)}]),
     ]  # fmt: skip
+
+
+def _md_table(rows: list[dict[str, str]]) -> str:
+    if not rows:
+        return ""
+    head = list(rows[0])
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(str(r[h]).replace("|", "/") for h in head) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def _md_block(block: Block) -> list[str]:
+    kind = block["kind"]
+    if kind == "warn":
+        return [f"**{block['text']}**", ""]
+    if kind == "p":
+        return [block["text"], ""]
+    if kind == "ul":
+        return [*(f"- {x}" for x in block["items"]), ""]
+    if kind == "table":
+        return [_md_table(block["rows"])] if block["rows"] else []
+    if kind == "details":
+        return [f"### {block['summary']}", "", _md_table(block["rows"])]
+    return [f"![{CAPTIONS[block['name']]}]({block['name']}.png)", ""]
+
+
+def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
+    out = ["# snnkart energy report", ""]
+    for title, blocks in sections(report, figure_names):
+        out += [f"## {title}", ""] if title else []
+        for block in blocks:
+            out += _md_block(block)
     return "\n".join(out)
 
 
@@ -286,56 +314,42 @@ def _html_table(rows: list[dict[str, str]], table_id: str) -> str:
     return f'<table id="{table_id}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
 
 
-CSS = """body{font-family:sans-serif;max-width:1150px;margin:1em auto;color:#222}
+def _html_block(block: Block, figs: dict[str, bytes]) -> str:
+    kind = block["kind"]
+    if kind in ("p", "warn"):
+        ident = f' id="{block["id"]}"' if block.get("id") else ""
+        cls = ' class="warn"' if kind == "warn" else ""
+        return f"<p{ident}{cls}>{html.escape(block['text'])}</p>"
+    if kind == "ul":
+        return "<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in block["items"]) + "</ul>"
+    if kind == "table":
+        return _html_table(block["rows"], block["id"])
+    if kind == "details":
+        return (f"<details><summary>{html.escape(block['summary'])}</summary>"
+                f"{_html_table(block['rows'], block['id'])}</details>")  # fmt: skip
+    name = block["name"]
+    return (f'<figure id="fig-{name}"><img alt="{name}" src="data:image/png;base64,'
+            f'{base64.b64encode(figs[name]).decode()}"><figcaption>{html.escape(CAPTIONS[name])}'
+            "</figcaption></figure>")  # fmt: skip
+
+
+CSS = """body{font-family:sans-serif;max-width:1150px;margin:.6em auto;color:#222}
+h1{margin:.2em 0;font-size:1.6em}#verdict{font-size:15px;line-height:1.35;margin:.3em 0}
 table{border-collapse:collapse;margin:.5em 0;font-size:13px}td,th{border:1px solid #bbb;
 padding:3px 6px;text-align:right}th{background:#eee}.warn{background:#fdd;border:2px solid #c00;
-padding:.6em;font-weight:bold}figure{margin:1em 0}img{max-width:100%}"""
-CAPTIONS = {
-    "firing_rates": "Firing rate per layer over the deployed episodes.",
-    "breakdown": "Energy per inference (log scale) and its parts.",
-    "sensitivity": "Sensitivity: the SNN/ANN ratio as each price moves, and against spike density.",
-    "tradeoff": "Accuracy against energy over the committed sparsity sweep (T, penalty, width).",
-    "raster": "Spike raster and membrane traces of every layer for one env step.",
-}
-
-REPORT_FILES = ("report.json", "report.md", "report.html", *(f"{name}.png" for name in CAPTIONS))
-"""Every file :func:`write_report` may write."""
+padding:.6em;font-weight:bold}figure{margin:.4em 0}img{max-width:100%}summary{cursor:pointer}
+#prices td:last-child,#prices td:nth-child(2){text-align:left}"""
 
 
 def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
-    md_sections = markdown(report, list(figs))
-    warn = "" if report["drives"] else (
-        f'<p class="warn">The spiking policy does not drive: success '
-        f'{_pct(report["snn"]["task"]["success_rate"])} (&lt; 80 %). The energy numbers below '
-        "describe a policy that fails its task; they are not a result.</p>"
-    )  # fmt: skip
-    figures = "".join(
-        f'<figure id="fig-{name}"><img alt="{name}" src="data:image/png;base64,'
-        f'{base64.b64encode(png).decode()}"><figcaption>{html.escape(CAPTIONS[name])}'
-        "</figcaption></figure>"
-        for name, png in figs.items()
-    )
-    lists = {
-        title: "<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in items) + "</ul>"
-        for title, items in (("Verdict", _verdict(report)), ("What the estimate includes", INCLUDES),
-                             ("What it leaves out", LEAVES_OUT), ("References", REFERENCES),
-                             (SANAFE_TITLE, sanafe_lines(report)))
-    }  # fmt: skip
-    intro = md_sections.split("\n## ")[0].split("\n", 2)[-1]
-    intro = html.escape(intro.replace("**", "").replace("`", "").strip())
+    body = []
+    for title, blocks in sections(report, list(figs)):
+        body += [f"<h2>{html.escape(title)}</h2>"] if title else []
+        body += [_html_block(b, figs) for b in blocks]
     return (
-        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>snnkart energy report</title>"
-        f"<style>{CSS}</style></head><body><h1>snnkart energy report</h1>{warn}<p>{intro}</p>"
-        f"<h2>Verdict</h2>{lists['Verdict']}"
-        f"<h2>Energy per inference and per episode, with the task</h2>"
-        f"{_html_table(headline(report), 'headline')}"
-        f"<h2>Counts per inference (measured)</h2>{_html_table(_counts_rows(report), 'counts')}"
-        f"<h2>Totals, footprint and latency</h2>{_html_table(_facts_rows(report), 'facts')}"
-        f"<h2>Figures</h2>{figures}"
-        f"<h2>{SANAFE_TITLE}</h2>{lists[SANAFE_TITLE]}{_html_table(sanafe_rows(report), 'sanafe')}"
-        f"<h2>What the estimate includes</h2>{lists['What the estimate includes']}"
-        f"<h2>What it leaves out</h2>{lists['What it leaves out']}"
-        f"<h2>References</h2>{lists['References']}</body></html>"
+        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>snnkart energy report</title>"
+        f"<style>{CSS}</style></head><body><h1>snnkart energy report</h1>{''.join(body)}"
+        "</body></html>"
     )
 
 

@@ -30,11 +30,12 @@ def _figure(width: float, height: float, ncols: int = 1, nrows: int = 1) -> tupl
     return plt.subplots(nrows, ncols, figsize=(width, height), dpi=110, squeeze=False)
 
 
-def _png(fig: Any) -> bytes:
+def _png(fig: Any, tight: bool = True) -> bytes:
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
-    fig.tight_layout()
+    if tight:
+        fig.tight_layout()
     fig.savefig(buf, format="png")
     plt.close(fig)
     return buf.getvalue()
@@ -62,6 +63,7 @@ def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
     left.barh(y, [t / 1000 for t in totals], color=["#d62728" if lab.startswith("SNN") else
                                                   "#7f7f7f" for lab in labels])  # fmt: skip
     left.set_xscale("log")
+    left.set_xlim(right=12 * max(totals, default=1.0) / 1000)  # room for the value labels
     left.set_yticks(y, labels)
     left.invert_yaxis()
     left.set_xlabel("energy per inference (nJ, log scale)")
@@ -77,56 +79,80 @@ def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
     right.invert_yaxis()
     right.set_xlim(0, 100)
     right.set_xlabel("share of the energy (%)")
-    right.legend(fontsize=7, loc="lower right", framealpha=0.9)
-    return _png(fig)
+    fig.legend(
+        *right.get_legend_handles_labels(),
+        fontsize=7,
+        loc="lower center",
+        ncol=len(PART_COLOURS),
+        frameon=False,
+    )  # below the bars, covering none
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    return _png(fig, tight=False)
+
+
+def _moves(row: dict[str, Any]) -> bool:
+    """Whether moving the price changes the ratio at all (a price whose count is 0 does not)."""
+    values = {row["ratio"], row["ratio_x0.1"], row["ratio_x10"]}
+    return max(values) > min(values) * (1 + 1e-9)
 
 
 def sensitivity(rows: Sequence[dict[str, Any]], curve: Sequence[tuple[float, float]],
                 break_even: float | None, title: str) -> bytes:  # fmt: skip
-    """Left: the SNN/ANN ratio as each price moves 0.1x-10x (bar) and across its range (dark);
-    right: the ratio against the spike density, with the break-even point."""
-    fig, axes = _figure(10.0, 0.35 * len(rows) + 1.8, ncols=2)
+    """Left: the SNN/ANN ratio as each price moves 0.1x-10x (light) and across its range (dark),
+    the prices that do not move it named below; right: the ratio against the spike density,
+    with the break-even point. ``title`` goes above both."""
+    shown = [r for r in rows if _moves(r)]
+    still = [f"{r['profile']}.{r['op']}" for r in rows if not _moves(r)]
+    fig, axes = _figure(10.0, 0.38 * len(shown) + 2.6, ncols=2)
     left, right = axes[0]
-    y = np.arange(len(rows))
+    y = np.arange(len(shown))
     base = rows[0]["ratio"] if rows else 1.0
-    for yi, row in zip(y, rows, strict=True):
-        lo, hi = sorted((row["ratio_x0.1"], row["ratio_x10"]))
-        left.plot([lo, hi], [yi, yi], color="#aec7e8", linewidth=6, solid_capstyle="butt")
-        rlo, rhi = sorted((row["ratio_low"], row["ratio_high"]))
-        left.plot([rlo, rhi], [yi, yi], color="#1f77b4", linewidth=6, solid_capstyle="butt")
+    for yi, row in zip(y, shown, strict=True):
+        for (a, b), colour in (((row["ratio_x0.1"], row["ratio_x10"]), "#aec7e8"),
+                               ((row["ratio_low"], row["ratio_high"]), "#1f77b4")):  # fmt: skip
+            left.plot(sorted((a, b)), [yi, yi], color=colour, linewidth=6, marker="|",
+                      markersize=12, solid_capstyle="butt")  # fmt: skip
     left.axvline(base, color="black", linewidth=1)
     left.axvline(1.0, color="#d62728", linestyle="--", linewidth=1)
     left.set_xscale("log")
     roles = {"chip": "SNN chip", "host": "SNN host", "digital": "ANN",
              "host+digital": "ANN + SNN host"}  # fmt: skip
-    left.set_yticks(
-        y, [f"{roles[r['side']]} ({r['profile']}): {r['op']}" for r in rows], fontsize=8
-    )
-    left.invert_yaxis()
-    left.set_xlabel("SNN / ANN energy (log; < 1: SNN wins)\nlight: price 0.1x-10x, dark: its range")
-    d, ratio = zip(*curve, strict=True)
-    right.plot(d, ratio, color="#1f77b4")
-    right.axhline(1.0, color="#d62728", linestyle="--", linewidth=1)
-    right.axvline(1.0, color="black", linewidth=1)
-    if break_even is not None and break_even <= max(d):
-        right.axvline(break_even, color="#2ca02c", linewidth=1)
-        shown = f"{break_even:.2f}" if break_even >= 0.1 else f"{break_even:.2g}"  # not 0.00
-        right.text(break_even, max(ratio), f" break-even {shown}x", color="#2ca02c",
-                   va="top", fontsize=8)  # fmt: skip
-    elif break_even is None:
-        right.text(0.02, 0.98, f"no break-even: with no spikes at all\nthe SNN still costs "
-                   f"{ratio[0]:.2g}x the ANN",
-                   transform=right.transAxes, va="top", fontsize=8, color="#d62728")  # fmt: skip
-    right.set_ylim(bottom=0)
-    right.set_xlabel("spikes relative to the deployed policy's")
-    right.set_ylabel("SNN / ANN energy")
-    right.set_title(title, fontsize=9)
+    left.set_yticks(y, [f"{roles[r['side']]}: {r['profile']}.{r['op']}" for r in shown],
+                    fontsize=8)  # fmt: skip
+    left.set_ylim(len(shown) - 0.5, -0.5)
+    note = "\n(no effect: " + ", ".join(still) + ")" if still else ""
+    left.set_xlabel("SNN / ANN energy (log; < 1: SNN wins)\nlight: price 0.1x-10x, dark: its "
+                    "range" + note, fontsize=8)  # fmt: skip
+    _density_curve(right, curve, break_even)
+    fig.suptitle(title, fontsize=10)
     return _png(fig)
 
 
-def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile: str) -> bytes:
+def _density_curve(ax: Any, curve: Sequence[tuple[float, float]], break_even: float | None) -> None:
+    """The SNN/ANN ratio against the spike density, with the break-even point."""
+    d, ratio = zip(*curve, strict=True)
+    ax.plot(d, ratio, color="#1f77b4")
+    ax.axhline(1.0, color="#d62728", linestyle="--", linewidth=1)
+    ax.axvline(1.0, color="black", linewidth=1)
+    if break_even is not None and break_even <= max(d):
+        ax.axvline(break_even, color="#2ca02c", linewidth=1)
+        shown = f"{break_even:.2f}" if break_even >= 0.1 else f"{break_even:.2g}"  # not 0.00
+        ax.text(break_even, max(ratio), f" break-even {shown}x", color="#2ca02c",
+                va="top", fontsize=8)  # fmt: skip
+    elif break_even is None:
+        ax.text(0.02, 0.98, f"no break-even: with no spikes at all\nthe SNN still costs "
+                f"{ratio[0]:.2g}x the ANN",
+                transform=ax.transAxes, va="top", fontsize=8, color="#d62728")  # fmt: skip
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("spikes relative to the deployed policy's")
+    ax.set_ylabel("SNN / ANN energy")
+
+
+def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile: str,
+             title: str) -> bytes:  # fmt: skip
     """Left: success rate against energy per inference (one dot per run of the sweep, the
-    ANN's energy as vertical lines); right: energy per inference against T."""
+    ANN's energy as vertical lines); right: energy per inference against T. ``title`` says
+    whose runs these are."""
     fig, axes = _figure(10.0, 3.8, ncols=2)
     left, right = axes[0]
     names = sorted({p["point"] for p in points})
@@ -150,6 +176,7 @@ def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile
     right.set_yscale("log")
     right.set_xlabel("T (SNN steps per env step)")
     right.set_ylabel("energy per inference (nJ, log)")
+    fig.suptitle(title, fontsize=10)
     return _png(fig)
 
 
@@ -196,3 +223,33 @@ def _telling_neurons(spikes: np.ndarray, k: int = 4) -> list[int]:
                if 0 < counts[j] < T]  # fmt: skip
     busiest = [int(j) for j in np.argsort(-counts, kind="stable") if int(j) not in partial]
     return (partial + busiest)[:k]
+
+
+def verdict(rows: Sequence[dict[str, Any]], legend: tuple[str, str]) -> bytes:
+    """The first screen's chart: per pair, the SNN's and the ANN's energy per inference (point
+    estimate, dot; 90 % interval of the joint sample, line), log scale, P(SNN cheaper) and the
+    ANN's success at the right. Each row's ``snn_nj`` / ``ann_nj`` is (point, p05, p95) in nJ;
+    ``legend`` names the two series."""
+    fig, axes = _figure(10.5, 0.36 * len(rows) + 1.1)
+    ax = axes[0][0]
+    for k, row in enumerate(rows):
+        for dy, key, colour, name in ((-0.13, "snn", "#d62728", legend[0]),
+                                      (0.13, "ann", "#555555", legend[1])):  # fmt: skip
+            point, low, high = row[f"{key}_nj"]
+            ax.plot([low, high], [k + dy] * 2, color=colour, linewidth=2.5, alpha=0.55)
+            ax.plot([point], [k + dy], "o", color=colour, markersize=4.5,
+                    label=name if k == 0 else None)  # fmt: skip
+        ax.text(1.01, k, f"P(SNN cheaper) {row['p']:.2f}\nANN success {row['ann_success']}",
+                transform=ax.get_yaxis_transform(), va="center", fontsize=7,
+                color="#2ca02c" if row["p"] > 0.5 else "#222222")  # fmt: skip
+        if k:
+            ax.axhline(k - 0.5, color="#dddddd", linewidth=0.8)
+    ax.set_xscale("log")
+    ax.set_yticks(range(len(rows)), [r["label"] for r in rows], fontsize=7)
+    ax.set_ylim(len(rows) - 0.5, -0.5)
+    ax.set_xlabel("energy per inference, dynamic only (nJ, log): dot the estimate, line its 90 % "
+                  "interval (all prices sampled together)", fontsize=8)  # fmt: skip
+    ax.tick_params(axis="x", labelsize=8)
+    ax.grid(axis="x", which="major", color="#eeeeee")
+    ax.legend(fontsize=7, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2, frameon=False)
+    return _png(fig)
