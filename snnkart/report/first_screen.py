@@ -83,10 +83,19 @@ def sentence(report: dict[str, Any]) -> str:
         f"{best['snn_profile']} against the ANN on {best['ann_profile']} ({ann_said}), it "
         f"costs {_interval(best)}, P(SNN cheaper) "
         f"{_p(best):.2f}; "
-        f"with static power over the {period:.1f} ms control period it costs less in "
-        f"{static_wins} of {len(with_static)}"
+        f"with static power over the {period:.1f} ms control period{_unpublished(rows)} it "
+        f"costs less in {static_wins} of {len(with_static)}"
         + (f" (lowest ratio {times(min(with_static))})." if with_static else ".")
     )
+
+
+def _unpublished(rows: list[dict[str, Any]]) -> str:
+    """Whose static power the with-static count leaves at 0 (not published), said inline."""
+    missing = sorted({n["profile"] for c in rows for n in c["static"].get("not_published", [])
+                      if n["op"] == "static_power"})  # fmt: skip
+    if not missing:
+        return ""
+    return f" (not published, so counted as 0, for {', '.join(missing)})"
 
 
 def chart_rows(report: dict[str, Any]) -> list[dict[str, Any]]:
