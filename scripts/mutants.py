@@ -34,6 +34,12 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
 - ``resume-default-length``: ``train --resume`` trains to the command line's length (the
   default 300,000 steps) instead of the run's own (``snnkart.rl.ppo._resolve_config``);
   guarded by ``tests/test_resume_length.py``.
+- ``shared-price-independent``: the joint uncertainty draws a price the SNN's host and the ANN
+  share (SRAM reads, digital add/mult/MAC of one technology) independently on each side
+  (``snnkart.energy.uncertainty.quantity``); guarded by ``tests/test_uncertainty.py``.
+- ``memory-row-8kb``: every side's weights are priced as reads of an 8 KB SRAM whatever their
+  footprint (``snnkart.energy.pricing.memory_row``; the choice that flipped the old verdict);
+  guarded by ``tests/test_energy_terms.py``.
 """
 
 from __future__ import annotations
@@ -58,6 +64,8 @@ MUTANTS = {
     "synops-fan-in": ["tests/test_energy.py", "-k", "real_deployment"],
     "updates-one-step-short": ["tests/test_energy.py", "-k", "real_deployment"],
     "resume-default-length": ["tests/test_resume_length.py", "-k", "keeps"],
+    "shared-price-independent": ["tests/test_uncertainty.py"],
+    "memory-row-8kb": ["tests/test_energy_terms.py"],
 }
 
 
@@ -136,6 +144,14 @@ def apply(name: str) -> None:
             return real_resolve(cfg, run_dir, resume, cfg.total_steps if resume else total_steps)
 
         snnkart.rl.ppo._resolve_config = resolve  # type: ignore[assignment]
+    elif name == "shared-price-independent":
+        import snnkart.energy.uncertainty
+
+        snnkart.energy.uncertainty.quantity = lambda profile, op: f"{profile.name}.{op}"  # type: ignore[assignment]
+    elif name == "memory-row-8kb":
+        import snnkart.energy.pricing
+
+        snnkart.energy.pricing.memory_row = lambda nbytes: "sram_read_8kb"  # type: ignore[assignment]
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 
