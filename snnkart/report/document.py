@@ -270,7 +270,8 @@ def sections(report: dict[str, Any], figure_names: list[str]) -> list[Section]:
     ]  # fmt: skip
 
 
-def _md_table(rows: list[dict[str, str]]) -> str:
+def md_table(rows: list[dict[str, str]]) -> str:
+    """``rows`` as a Markdown table (empty without rows)."""
     if not rows:
         return ""
     head = list(rows[0])
@@ -288,9 +289,9 @@ def _md_block(block: Block) -> list[str]:
     if kind == "ul":
         return [*(f"- {x}" for x in block["items"]), ""]
     if kind == "table":
-        return [_md_table(block["rows"])] if block["rows"] else []
+        return [md_table(block["rows"])] if block["rows"] else []
     if kind == "details":
-        return [f"### {block['summary']}", "", _md_table(block["rows"])]
+        return [f"### {block['summary']}", "", md_table(block["rows"])]
     return [f"![{CAPTIONS[block['name']]}]({block['name']}.png)", ""]
 
 
