@@ -69,8 +69,11 @@ def _tidy_params(params: list[Any]) -> None:
             param.metavar = ""  # a flag takes no value: no "<bool>"
 
 
-class HelpCommand(TyperCommand):
-    """A command whose help is tidied (see the module docstring)."""
+class _Tidied:
+    """Help tidied at construction (see the module docstring); a flag's help option takes no
+    value, so it shows no metavar."""
+
+    params: list[Any]
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs["help"] = tidy(kwargs.get("help"))
@@ -78,25 +81,18 @@ class HelpCommand(TyperCommand):
         _tidy_params(self.params)
 
     def get_help_option(self, ctx: Any) -> Any:
-        option = super().get_help_option(ctx)
+        option = super().get_help_option(ctx)  # type: ignore[misc]
         if option is not None:
             option.metavar = ""
         return option
 
 
-class HelpGroup(TyperGroup):
-    """A command group whose help is tidied (see the module docstring)."""
+class HelpCommand(_Tidied, TyperCommand):
+    """A command whose help is tidied."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        kwargs["help"] = tidy(kwargs.get("help"))
-        super().__init__(*args, **kwargs)
-        _tidy_params(self.params)
 
-    def get_help_option(self, ctx: Any) -> Any:
-        option = super().get_help_option(ctx)
-        if option is not None:
-            option.metavar = ""
-        return option
+class HelpGroup(_Tidied, TyperGroup):
+    """A command group whose help is tidied."""
 
 
 def _epilog(path: str) -> str:
