@@ -89,7 +89,8 @@ from lava.proc.sdn.process import ActivationMode, Delta, Sigma, SigmaDelta
 z = np.load(sys.argv[1])
 xs, n = z["xs"], int(z["xs"].shape[0])
 L, tag = int(z["layers"]), str(z["tag"])
-exps = dict(spike_exp=int(z["spike_exp"]), state_exp=int(z["state_exp"]))
+exps = dict(spike_exp=int(z["spike_exp"]), state_exp=int(z["state_exp"]),
+            cum_error=bool(z["cum_error"]))
 fixed = tag == "fixed_pt"
 dk = {"num_weight_bits": 8, "weight_exp": int(z["weight_exp"])} if fixed else {}
 src = Source(data=xs.T)
@@ -125,16 +126,21 @@ np.savez(sys.argv[2], **got)
 @pytest.mark.lava
 @pytest.mark.timeout(180)
 @pytest.mark.parametrize(
-    ("arithmetic", "exps"),
-    [("fixed", (0, 0, 0)), ("fixed", (1, 1, -1)), ("float64", (0, 0, 0))],
+    ("arithmetic", "exps", "cum_error"),
+    [
+        ("fixed", (0, 0, 0), False),
+        ("fixed", (1, 1, -1), False),
+        ("fixed", (0, 1, 0), True),
+        ("float64", (0, 0, 0), False),
+    ],
 )
 def test_reference_is_bit_exact_with_lavas_own_processes(
-    arithmetic: str, exps: tuple[int, int, int], tmp_path: Path
+    arithmetic: str, exps: tuple[int, int, int], cum_error: bool, tmp_path: Path
 ) -> None:
     spike_exp, state_exp, weight_exp = exps
     spec = _random_spec(
         3, 6, arithmetic=arithmetic, vth_in=2, spike_exp=spike_exp, state_exp=state_exp,
-        weight_exp=weight_exp,
+        weight_exp=weight_exp, cum_error=cum_error,
     )  # fmt: skip
     xs = np.random.default_rng(4).integers(-12, 13, (20, 5))
     xs[8:12] = xs[7]
@@ -146,7 +152,7 @@ def test_reference_is_bit_exact_with_lavas_own_processes(
     np.savez(
         tmp_path / "spec.npz", xs=xs, layers=len(spec.biases), tag=tag, vth=np.array(spec.vth),
         vth_in=np.array(spec.vth_in), spike_exp=spike_exp, state_exp=state_exp,
-        weight_exp=weight_exp, **arrays,
+        weight_exp=weight_exp, cum_error=cum_error, **arrays,
     )  # fmt: skip
     run = subprocess.run(
         [sys.executable, "-c", LAVA_RUN, str(tmp_path / "spec.npz"), str(tmp_path / "out.npz")],

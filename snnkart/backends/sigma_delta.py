@@ -136,9 +136,7 @@ class SigmaDeltaChain:
     def reset(self) -> None:
         """Zero every state variable as a freshly built Lava network has it."""
         sizes = [self.weights[0].shape[1]] + [w.shape[0] for w in self.weights]
-        self.enc = [
-            _Encoder(*(np.zeros(n, self.dtype) for _ in range(4))) for n in sizes[:-1]
-        ]
+        self.enc = [_Encoder(*(np.zeros(n, self.dtype) for _ in range(4))) for n in sizes[:-1]]
         self.buf = [np.zeros(n, self.dtype) for n in sizes[1:]]
         self.out = np.zeros(sizes[-1], self.dtype)
         self.messages = []
