@@ -23,11 +23,18 @@ def _random_spec(seed: int, vth: float, **kwargs: object) -> SigmaDeltaSpec:
     return SigmaDeltaSpec(weights=weights, biases=biases, vth=(vth, vth), **kwargs)  # type: ignore[arg-type]
 
 
-@pytest.mark.parametrize("arithmetic", ["fixed", "float64"])
+@pytest.mark.parametrize(
+    ("arithmetic", "exps"),
+    [("fixed", (0, 0, 0)), ("fixed", (1, 1, -1)), ("float64", (0, 0, 0)), ("float64", (1, 1, 0))],
+)
 def test_zero_thresholds_equal_the_quantised_relu_network_after_the_pipeline_delay(
-    arithmetic: str,
+    arithmetic: str, exps: tuple[int, int, int]
 ) -> None:
-    spec = _random_spec(0, 0, arithmetic=arithmetic)
+    spike_exp, state_exp, weight_exp = exps
+    spec = _random_spec(
+        0, 0, arithmetic=arithmetic, spike_exp=spike_exp, state_exp=state_exp,
+        weight_exp=weight_exp,
+    )  # fmt: skip
     xs = np.random.default_rng(1).integers(-10, 11, (40, 5))
     xs[10:20] = xs[9]  # a stretch of repeated observations: no input messages, same output
     chain = SigmaDeltaChain(spec)
@@ -41,6 +48,15 @@ def test_zero_thresholds_equal_the_quantised_relu_network_after_the_pipeline_del
     assert not out[0].any()
     assert np.count_nonzero(ann) > 50
     assert chain.message_counts()[12:19, 0].sum() == 0  # repeated input sends nothing
+
+
+def test_a_shift_that_drops_set_bits_floors_every_delta_apart() -> None:
+    # weight_exp = -2 drops a bit that the even (mixed-sign) weights do not keep at zero:
+    # the chain then drifts from the network (docs/sigma-delta.md, "When it is exact").
+    spec = _random_spec(0, 0, weight_exp=-2)
+    xs = np.random.default_rng(1).integers(-10, 11, (40, 5))
+    diff = SigmaDeltaChain(spec).run(xs)[3:] - relu_network(spec, xs)[:-3]
+    assert np.abs(diff).max() > 0
 
 
 def test_state_persists_across_calls_until_reset() -> None:

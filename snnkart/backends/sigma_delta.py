@@ -199,13 +199,17 @@ class SigmaDeltaChain:
 
 
 def relu_network(spec: SigmaDeltaSpec, xs: np.ndarray) -> np.ndarray:
-    """The quantised ReLU network the chain computes with zero thresholds, no delay:
-    ``W_{L+1} relu(... relu(W_1 x + b_1) ...)`` on the same (Lava-prepared) weights."""
+    """The quantised ReLU network the chain computes with zero thresholds, without the delay:
+    ``W_{L+1} m(relu(... relu(W_1 m(x) + b_1) ...))`` on the same (Lava-prepared) weights, where
+    ``m(h) = h * 2**(spike_exp + state_exp) >> state_exp`` is an activation as its message
+    carries it (fixed point; the identity in float)."""
     chain = SigmaDeltaChain(spec)
-    scale = 1 << (spec.spike_exp + spec.state_exp) if spec.fixed else 1
-    h = np.asarray(xs, chain.dtype) * scale
+    h = np.asarray(xs, chain.dtype)
+    if spec.fixed:
+        h = np.right_shift(np.left_shift(h, spec.spike_exp + spec.state_exp), spec.state_exp)
     for w, b in zip(chain.weights[:-1], chain.bias, strict=True):
         h = np.maximum(_dense_all(spec, w, h) + b, 0)
+        h = np.right_shift(h, spec.state_exp) if spec.fixed else h
     return _dense_all(spec, chain.weights[-1], h)
 
 
