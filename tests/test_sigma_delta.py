@@ -161,7 +161,11 @@ def test_reference_is_bit_exact_with_lavas_own_processes(
     xs = np.random.default_rng(4).integers(-12, 13, (20, 5))
     xs[8:12] = xs[7]
     chain = SigmaDeltaChain(spec)
-    out = chain.run(xs)
+    out = np.empty((len(xs), 3), chain.dtype)
+    sent: list[tuple[np.ndarray, ...]] = []
+    for t, x in enumerate(xs):
+        out[t] = chain.step(x)
+        sent.append(chain.sent)
     arrays = {f"w{i}": w for i, w in enumerate(spec.weights)}
     arrays |= {f"b{i}": b for i, b in enumerate(spec.biases)}
     tag = "fixed_pt" if arithmetic == "fixed" else "floating_pt"
@@ -177,7 +181,10 @@ def test_reference_is_bit_exact_with_lavas_own_processes(
     assert run.returncode == 0, run.stderr[-3000:]
     got = np.load(tmp_path / "out.npz")
     n_layers = len(spec.biases) + 1
+    for i in range(n_layers):  # every value every layer sent, step by step
+        np.testing.assert_array_equal(got[f"s{i}"], np.stack([s[i] for s in sent]))
     lava_counts = np.stack([np.count_nonzero(got[f"s{i}"], axis=1) for i in range(n_layers)], 1)
     np.testing.assert_array_equal(lava_counts, chain.message_counts())
+    assert max(np.abs(got[f"s{i}"]).max() for i in range(n_layers)) > 255  # graded, > 8 bits
     np.testing.assert_array_equal(got[f"s{n_layers}"], out)
     assert np.count_nonzero(out) > 20 and 0 < lava_counts.sum() < lava_counts.size * 8

@@ -115,8 +115,9 @@ class _Encoder:
 class SigmaDeltaChain:
     """Steps a :class:`SigmaDeltaSpec` one Lava step per call; state persists until ``reset``.
 
-    ``step(x)`` returns the readout Sigma's value after this step (``[n_out]``) and appends this
-    step's per-layer message counts (input Delta first, then each SigmaDelta) to ``messages``.
+    ``step(x)`` returns the readout Sigma's value after this step (``[n_out]``), appends this
+    step's per-layer message counts (input Delta first, then each SigmaDelta) to ``messages``
+    and keeps the values sent in ``sent`` (one array per sending layer, zero = no message).
     """
 
     def __init__(self, spec: SigmaDeltaSpec) -> None:
@@ -128,6 +129,7 @@ class SigmaDeltaChain:
         self.vth = [self._cast(v * scale) for v in (spec.vth_in, *spec.vth)]
         self.bias = [np.asarray(b, self.dtype) * scale for b in spec.biases]
         self.messages: list[np.ndarray] = []
+        self.sent: tuple[np.ndarray, ...] = ()
         self.reset()
 
     def _cast(self, v: float) -> int | float:
@@ -168,16 +170,15 @@ class SigmaDeltaChain:
         a = np.asarray(x, self.dtype)
         if spec.fixed:
             a = np.left_shift(a, spec.spike_exp + spec.state_exp)
-        s = self._encode(0, a)
-        counts = [np.count_nonzero(s)]
+        sent = [self._encode(0, a)]
         for i in range(len(self.bias)):
-            a_in = self._dense(i, s)
+            a_in = self._dense(i, sent[-1])
             e = self.enc[i + 1]
             e.sigma = e.sigma + a_in
-            s = self._encode(i + 1, np.maximum(e.sigma + self.bias[i], 0))
-            counts.append(np.count_nonzero(s))
-        self.out = self.out + self._dense(len(self.bias), s)
-        self.messages.append(np.asarray(counts, np.int64))
+            sent.append(self._encode(i + 1, np.maximum(e.sigma + self.bias[i], 0)))
+        self.out = self.out + self._dense(len(self.bias), sent[-1])
+        self.sent = tuple(sent)
+        self.messages.append(np.array([np.count_nonzero(s) for s in sent], np.int64))
         return self.out.copy()
 
     def run(self, xs: np.ndarray) -> np.ndarray:
