@@ -11,7 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from snnkart.backends.sigma_delta import SigmaDeltaChain, SigmaDeltaSpec, relu_network
+from snnkart.backends.sigma_delta import (
+    SigmaDeltaChain,
+    SigmaDeltaSpec,
+    lava_fixed_weights,
+    relu_network,
+)
 from snnkart.errors import DeployError
 
 
@@ -83,6 +88,15 @@ def test_hand_computed_message_count_on_a_three_step_input() -> None:
     np.testing.assert_array_equal(chain.payload_bits(), [[8, 0], [8, 8], [8, 8]])
     np.testing.assert_array_equal(chain.synaptic_events(), [[1, 0], [1, 1], [1, 1]])
     np.testing.assert_array_equal(out[:, 0], [0, 0, 3])
+
+
+def test_fixed_point_weights_are_clipped_and_truncated_as_lavas_dense_does() -> None:
+    # measured on Lava (/work/shared/reference/lava-closed-loop.md section 8, item 8): mixed
+    # signs drop the least significant bit and clip to 254; one-signed matrices keep 0..255
+    mixed = lava_fixed_weights(np.array([[3, -3, 5, 1, -1, 300]]))
+    np.testing.assert_array_equal(mixed, [[2, -4, 4, 0, -2, 254]])
+    np.testing.assert_array_equal(lava_fixed_weights(np.array([[3, 300, 0]])), [[3, 255, 0]])
+    np.testing.assert_array_equal(lava_fixed_weights(np.array([[-3, -300]])), [[-3, -255]])
 
 
 def test_mismatched_layers_are_one_clear_error() -> None:
