@@ -170,7 +170,10 @@ def train(
     set_: Annotated[
         list[str] | None,
         typer.Option(
-            "--set", "-s", help="any hyperparameter: KEY=VALUE, e.g. ppo.learning_rate=1e-3"
+            "--set",
+            "-s",
+            help="any hyperparameter: KEY=VALUE, e.g. ppo.learning_rate=1e-3 or "
+            "ann.activation=relu (the ANN's hidden activation; default tanh)",
         ),
     ] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
