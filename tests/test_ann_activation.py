@@ -95,6 +95,7 @@ def test_the_relu_actor_computes_relu() -> None:
     policy = ANNPolicy(6, 3, True, ANNConfig(hidden=(16, 8), activation="relu"), -0.5)
     obs = torch.randn(64, 6)
     first, act, second, act2, out = policy.actor
+    assert isinstance(act2, torch.nn.ReLU)
     pre = first(obs)
     assert (pre < 0).sum() > 100 and (pre > 0).sum() > 100
     hidden = act(pre)
