@@ -184,7 +184,11 @@ def test_int8_relu_agrees_with_the_float_actor() -> None:
         x = x @ w.T + b
         x = np.maximum(x, 0.0) if i < len(params) - 1 else x
     net = quantise_mlp(params, z[:1000], "relu")
-    assert net.layers[0].table is None and net.layers[0].in_scale > 0
+    assert net.layers[0].table is None
+    w1, b1 = params[0]
+    top = np.maximum(z[:1000] @ w1.T + b1, 0.0).max()  # the positive side only: ReLU's range
+    assert net.layers[0].pre_scale == pytest.approx(top / 127)
+    assert net.layers[1].in_scale == net.layers[0].pre_scale  # ReLU keeps the scale
     held_out = z[1000:]
     agree = (net.act(held_out, discrete=True) == x[1000:].argmax(-1)).mean()
     assert agree >= 0.95, f"int8 ReLU agrees with float on only {agree:.1%}"
