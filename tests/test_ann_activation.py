@@ -16,6 +16,7 @@ import torch
 from tiny_runs import TINY
 from typer.testing import CliRunner
 
+import snnkart
 from snnkart.cli import app
 from snnkart.errors import ConfigError
 from snnkart.eval.ann_int8 import int8_task
@@ -47,11 +48,13 @@ def relu_trainer(tmp_path_factory: pytest.TempPathFactory) -> Trainer:
 
 
 class _Both:
-    """The loaded run's predictor, checked on every step against the in-memory policy."""
+    """The loaded run's predictor and the Python API's, checked on every step against the
+    in-memory policy."""
 
     def __init__(self, trainer: Trainer) -> None:
         self.trainer = trainer
         self.loaded = TorchPredictor(load_run(trainer.run_dir), seed=0)
+        self.api = snnkart.load_policy(trainer.run_dir)
         self.steps = 0
 
     def reset(self) -> None:
@@ -64,6 +67,7 @@ class _Both:
             torch.from_numpy(norm), torch.from_numpy(raw)
         )
         action = self.loaded.predict(obs)
+        assert self.api.predict(obs) == action
         assert action == int(expected[0]), f"step {self.steps}: loaded {action}, memory {expected}"
         self.steps += 1
         return action
