@@ -24,6 +24,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "snnkart train --env grid --policy snn --out runs/grid-snn",
         "snnkart train --resume --out runs/grid-snn",
         "snnkart train --set ppo.learning_rate=1e-3 --set snn.num_steps=4",
+        "snnkart train --policy ann --set ann.activation=relu",
     ),
     "eval": (f"snnkart eval {_RUN} --episodes 50", f"snnkart eval {_RUN} --backend nir-ref"),
     "replay": (f"snnkart replay {_RUN} --mode all", f"snnkart replay --compare {_ANN} {_RUN}"),

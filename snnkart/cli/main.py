@@ -140,6 +140,12 @@ def demo(
     print_headline(finished["report"], headline(finished["report"]))
 
 
+_SET_HELP = (
+    "any hyperparameter: KEY=VALUE, e.g. ppo.learning_rate=1e-3 or ann.activation=relu "
+    "(the ANN's hidden activation; default tanh)"
+)
+
+
 @app.command()
 def train(
     env: Annotated[
@@ -169,9 +175,7 @@ def train(
     config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config file")] = None,
     set_: Annotated[
         list[str] | None,
-        typer.Option(
-            "--set", "-s", help="any hyperparameter: KEY=VALUE, e.g. ppo.learning_rate=1e-3"
-        ),
+        typer.Option("--set", "-s", help=_SET_HELP),
     ] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
     force: ForceOpt = False,

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from snnkart.eval.episodes import EvalSummary, run_episodes
-from snnkart.rl.int8 import Int8Mlp, actor_params, quantise_mlp
+from snnkart.rl.int8 import Int8Mlp, actor_activation, actor_params, quantise_mlp
 from snnkart.rl.rollout import normalize_obs
 from snnkart.rl.trained import LoadedRun, TorchPredictor
 
@@ -110,7 +110,8 @@ def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, epis
     t0 = time.perf_counter()
     seeds = calibration_seeds(first_seed, episodes, calibration_episodes)
     observations = record_observations(run, make_env, seeds)
-    net = quantise_mlp(actor_params(run.policy.actor), observations)
+    activation = actor_activation(run.policy.actor)
+    net = quantise_mlp(actor_params(run.policy.actor), observations, activation)
     t1 = time.perf_counter()
     predictor = Int8Predictor(run, net, first_seed)
     env = make_env()
@@ -132,7 +133,8 @@ def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, epis
             "observations": len(observations), "policy": "the float ANN, deterministic",
         },
         "scheme": "post-training int8, symmetric per tensor (weights, layer inputs and "
-        "pre-activations), int32 accumulate, integer requantisation, tanh by table",
+        "pre-activations), int32 accumulate, integer requantisation, "
+        + ("ReLU exact on the int8 pre-activation" if activation == "relu" else "tanh by table"),
         "layers": net.describe(),
         "seconds": {"calibration": t1 - t0, "evaluation": time.perf_counter() - t1},
         "host_ms_per_inference": {

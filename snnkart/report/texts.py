@@ -30,7 +30,7 @@ LEAVES_OUT = (
     "ratios compare published figures, not equal processes.",
     "Static power is not published for the digital targets (the host's static power would add "
     "alike to both sides), nor for SpiNNaker; TrueNorth's figure is all-in and includes it. "
-    "The ANN's activation functions (tanh) are not priced.",
+    "The ANN's activation functions (tanh or ReLU: ann.activation) are not priced.",
     "Weight reuse across inferences and caches are not modelled; memory-inclusive profiles "
     "read every weight once per inference.",
 )

@@ -83,7 +83,13 @@ class PPOConfig(_Section):
 
 
 class ANNConfig(_Section):
+    """The MLPs: the ANN policy's actor and critic, and the SNN policy's critic (width only)."""
+
     hidden: tuple[int, ...] = (128, 128)
+    activation: Literal["tanh", "relu"] = Field(
+        "tanh", description="the ANN policy's hidden activation, actor and critic (the SNN's "
+        "critic stays tanh); relu: what a sigma-delta or int8 chip computes exactly"
+    )  # fmt: skip
 
 
 MAX_SPIKING_LAYERS = 3
@@ -404,6 +410,8 @@ def validate_config(
                 lines.append(f"unknown key {loc!r} (misspelled?{' ' + near if near else ''})")
             else:
                 msg = err["msg"].removeprefix("Value error, ")
+                if err["type"] == "literal_error":
+                    msg += f", not {err['input']!r}"
                 lines.append(f"{loc}: {msg}" if loc else msg)
         raise ConfigError(f"{source}: invalid training config: " + "; ".join(lines)) from None
     except ValueError as exc:

@@ -1,4 +1,4 @@
-"""Post-training int8 quantisation of the ANN actor (Linear -> tanh -> ... -> Linear), and the
+"""Post-training int8 quantisation of the ANN actor (Linear -> tanh or ReLU -> ... -> Linear), and the
 integer forward pass that runs it: the int8 baseline of the energy report, measured on the
 deployment's episodes (:mod:`snnkart.eval.ann_int8`) instead of assumed to drive as the float
 policy does.
@@ -22,6 +22,9 @@ is a 64-bit intermediate; the float scales are fixed once, from calibration):
   saturation. No float arithmetic between layers.
 - **tanh:** a 255-entry int8 table indexed by ``a``: ``x_{l+1} = clip(rint(tanh(a s_a) /
   s_{l+1}), ±127)`` (TFLite's int8 TANH is a table of the same kind).
+- **ReLU (``ann.activation = "relu"``):** exact in integers, ``x_{l+1} = max(a, 0)`` with
+  ``s_{l+1} = s_a``; ``s_a = max(relu(v)) / 127`` (negative pre-activations saturate at -127
+  and become 0 either way, so the whole int8 range goes to the positive side).
 - **Output:** discrete actions take the argmax of the int32 accumulator (its scale is positive,
   so it is the argmax of the logits; ties go to the first); continuous actions are the
   accumulator times ``s_L s_w`` in float on the host, clipped to [-1, 1] as the float policy's.
@@ -59,6 +62,7 @@ class Int8Layer:
     multiplier: int  # M (0 for the output layer)
     shift: int  # k
     table: np.ndarray | None  # (255,) int8: tanh of pre-activation a at index a + 127
+    activation: str = "tanh"  # hidden layers: "tanh" (by ``table``) or "relu" (max(a, 0))
 
     def accumulate(self, x: np.ndarray) -> np.ndarray:
         """``W_q x + b_q`` for int8 inputs ``x`` (batch, in): the int32 accumulator."""
@@ -72,7 +76,9 @@ class Int8Layer:
         return np.clip(rounded, -INT8_MAX, INT8_MAX)
 
     def activate(self, pre: np.ndarray) -> np.ndarray:
-        """tanh by table: the next layer's int8 input."""
+        """tanh by table, or ReLU exactly: the next layer's int8 input."""
+        if self.activation == "relu":
+            return np.maximum(pre, 0)
         assert self.table is not None
         return self.table[pre + INT8_MAX].astype(np.int64)
 
@@ -150,10 +156,14 @@ def tanh_table(pre_scale: float, out_scale: float) -> np.ndarray:
     return to_int8(np.tanh(a * pre_scale), out_scale)
 
 
-def quantise_mlp(params: list[tuple[np.ndarray, np.ndarray]], calibration: np.ndarray) -> Int8Mlp:
-    """Quantise an MLP actor given as ``[(W, b), ...]`` (tanh between layers) with activation
-    scales calibrated on ``calibration``, normalised observations (n, obs) the float policy
-    saw (see the module docstring for the rules)."""
+def quantise_mlp(
+    params: list[tuple[np.ndarray, np.ndarray]], calibration: np.ndarray, activation: str = "tanh"
+) -> Int8Mlp:
+    """Quantise an MLP actor given as ``[(W, b), ...]`` (``activation``, tanh or relu, between
+    layers) with activation scales calibrated on ``calibration``, normalised observations
+    (n, obs) the float policy saw (see the module docstring for the rules)."""
+    if activation not in ("tanh", "relu"):
+        raise ValueError(f"activation {activation!r}: int8 quantisation takes tanh or relu")
     if len(calibration) == 0:
         raise ValueError("no calibration observations: record at least one episode")
     x = np.asarray(calibration, np.float64)
@@ -172,30 +182,42 @@ def quantise_mlp(params: list[tuple[np.ndarray, np.ndarray]], calibration: np.nd
             layers.append(Int8Layer(w_q, b_q.astype(np.int32), in_scale, w_scale,
                                     None, 0, 0, None))  # fmt: skip
             break
-        pre_scale = symmetric_scale(pre)
-        x = np.tanh(pre)
-        out_scale = symmetric_scale(x)
+        relu = activation == "relu"
+        x = np.maximum(pre, 0.0) if relu else np.tanh(pre)
+        pre_scale = symmetric_scale(x if relu else pre)
+        out_scale = pre_scale if relu else symmetric_scale(x)
         m, k = fixed_multiplier(in_scale * w_scale / pre_scale)
-        table = tanh_table(pre_scale, out_scale)
+        table = None if relu else tanh_table(pre_scale, out_scale)
         layers.append(Int8Layer(w_q, b_q.astype(np.int32), in_scale, w_scale,
-                                pre_scale, m, k, table))  # fmt: skip
+                                pre_scale, m, k, table, activation))  # fmt: skip
         in_scale = out_scale
     return Int8Mlp(tuple(layers))
 
 
-def actor_params(actor: Any) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The ``(W, b)`` of an ANN actor ``nn.Sequential(Linear, Tanh, ..., Linear)``, in float64;
-    any other layout is refused, naming the module that does not fit."""
+def actor_activation(actor: Any) -> str:
+    """The hidden activation of an ANN actor, ``"tanh"`` or ``"relu"`` (of its second module;
+    :func:`actor_params` checks that every hidden one is the same)."""
     import torch
 
     modules = list(actor)
+    return "relu" if len(modules) > 1 and isinstance(modules[1], torch.nn.ReLU) else "tanh"
+
+
+def actor_params(actor: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The ``(W, b)`` of an ANN actor ``nn.Sequential(Linear, Tanh, ..., Linear)`` (or ReLU
+    throughout), in float64; any other layout is refused, naming the module that does not fit."""
+    import torch
+
+    modules = list(actor)
+    hidden = torch.nn.ReLU if actor_activation(actor) == "relu" else torch.nn.Tanh
     params = []
     for i, module in enumerate(modules):
-        expected = torch.nn.Linear if i % 2 == 0 or i == len(modules) - 1 else torch.nn.Tanh
+        expected = torch.nn.Linear if i % 2 == 0 or i == len(modules) - 1 else hidden
         if not isinstance(module, expected):
             raise CheckpointError(
                 f"the ANN actor's module {i} is {type(module).__name__}, expected "
-                f"{expected.__name__}: int8 quantisation takes Linear -> Tanh -> ... -> Linear"
+                f"{expected.__name__}: int8 quantisation takes Linear -> Tanh (or ReLU) -> ... "
+                "-> Linear"
             )
         if isinstance(module, torch.nn.Linear):
             w = module.weight.detach().double().numpy()

@@ -37,10 +37,15 @@ def layer_init(layer: nn.Linear, std: float = math.sqrt(2.0), bias: float = 0.0)
     return layer
 
 
-def mlp(sizes: list[int], out_std: float) -> nn.Sequential:
+ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU}
+"""The hidden activations an MLP may have, by their ``ann.activation`` name."""
+
+
+def mlp(sizes: list[int], out_std: float, activation: str = "tanh") -> nn.Sequential:
+    """Linear -> activation -> ... -> Linear, the last layer initialised with ``out_std``."""
     layers: list[nn.Module] = []
     for a, b in itertools.pairwise(sizes[:-1]):
-        layers += [layer_init(nn.Linear(a, b)), nn.Tanh()]
+        layers += [layer_init(nn.Linear(a, b)), ACTIVATIONS[activation]()]
     layers.append(layer_init(nn.Linear(sizes[-2], sizes[-1]), std=out_std))
     return nn.Sequential(*layers)
 
@@ -116,7 +121,8 @@ class ActorCritic(nn.Module):
 
 
 class ANNPolicy(ActorCritic):
-    """MLP actor and critic (the original used 128-128 ReLU; here tanh as in CleanRL)."""
+    """MLP actor and critic (the original used 128-128 ReLU; here tanh as in CleanRL, or ReLU
+    with ``ann.activation = "relu"``, for both)."""
 
     kind = "ann"
 
@@ -125,8 +131,8 @@ class ANNPolicy(ActorCritic):
     ) -> None:
         super().__init__(obs_dim, action_dim, discrete, init_log_std)
         sizes = [obs_dim, *cfg.hidden]
-        self.actor = mlp([*sizes, action_dim], out_std=0.01)
-        self.critic = mlp([*sizes, 1], out_std=1.0)
+        self.actor = mlp([*sizes, action_dim], out_std=0.01, activation=cfg.activation)
+        self.critic = mlp([*sizes, 1], out_std=1.0, activation=cfg.activation)
 
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
         return self.actor(obs), None, None
