@@ -215,8 +215,8 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
 
 def _memory(snn: SnnCounts, ann: AnnCounts, host: Profile, digital: Profile) -> dict[str, Any]:
     """Each side's weight footprint and the memory array it is read from (its own row)."""
-    snn_bytes = snn.net.host_parameters * host.weight_bits / 8
-    ann_bytes = ann.parameters * digital.weight_bits / 8
+    snn_bytes = host.weight_bytes(snn.net.host_parameters)
+    ann_bytes = digital.weight_bytes(ann.parameters)
     return {"snn_host_weight_bytes": snn_bytes, "snn_host_array": memory_row(snn_bytes),
             "ann_weight_bytes": ann_bytes, "ann_array": memory_row(ann_bytes)}  # fmt: skip
 

@@ -66,7 +66,7 @@ def _term(part: str, what: str, count: float, profile: Profile, op: str) -> Term
 def _digital(ops: Iterable[HostOp], profile: Profile, part: str, parameters: int) -> list[Term]:
     """Digital operations priced on ``profile``; weight reads as 64-bit reads from the array
     that holds this side's ``parameters`` weights at the profile's ``weight_bits``."""
-    nbytes = parameters * profile.weight_bits / 8
+    nbytes = profile.weight_bytes(parameters)
     row = memory_row(nbytes)
     terms = []
     for op in ops:

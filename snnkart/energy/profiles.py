@@ -128,6 +128,11 @@ class Profile:
     neurons_per_core: int = 0  # neuromorphic: the placement routing is priced on (0: none)
     cores_per_tile: int = 1
 
+    def weight_bytes(self, parameters: float) -> float:
+        """The footprint of ``parameters`` weights stored at this profile's ``weight_bits``
+        (what :func:`memory_row` sizes the array by)."""
+        return parameters * self.weight_bits / 8
+
     def __getitem__(self, op: str) -> float:
         return self.prices[op].value
 
