@@ -173,7 +173,7 @@ def test_manifest_round_trips_and_describes_the_run(
     assert Manifest.from_json(manifest.to_json()) == manifest
 
     cfg = run.config
-    assert manifest.schema == MANIFEST_SCHEMA == "snnkart/manifest/v2"
+    assert manifest.schema == MANIFEST_SCHEMA == "snnkart/manifest/v3"
     assert manifest.nir_file == "policy.nir"
     assert manifest.nir_dt == NIR_DT
     assert manifest.num_steps == cfg.snn.num_steps == 8

@@ -15,16 +15,19 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from snnkart.contract.sigma_delta import SigmaDeltaBlock
 from snnkart.errors import ManifestError
 from snnkart.io import atomic_path
 
-MANIFEST_SCHEMA = "snnkart/manifest/v2"
+MANIFEST_SCHEMA = "snnkart/manifest/v3"
 SCHEMA_FILE = Path(__file__).with_name("manifest.schema.json")
 """The JSON Schema of a v2 manifest (for other tools; this module validates in ``__post_init__``)."""
-"""v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests still
-load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
-READABLE_SCHEMAS = ("snnkart/manifest/v1", MANIFEST_SCHEMA)
-ENCODINGS = ("current", "rate", "population")
+"""v3 adds ``state_persists`` (membranes carry across env steps: a stateful LIF policy) and
+``sigma_delta`` (a sigma-delta policy, :mod:`snnkart.contract.sigma_delta`); v2 manifests load
+with neither. v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests
+still load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
+READABLE_SCHEMAS = ("snnkart/manifest/v1", "snnkart/manifest/v2", MANIFEST_SCHEMA)
+ENCODINGS = ("current", "rate", "population", "delta")
 ACTION_MODES = ("discrete", "continuous")
 
 
@@ -62,6 +65,8 @@ class Manifest:
     track: dict[str, str] | None = None  # the trained track (v2; None in v1 manifests)
     population: int | None = None  # population encoding: receptive fields per observation
     discretisation: str = "euler"  # of the time constants at nir_dt: euler or exact (exp)
+    state_persists: bool = False  # v3: no reset per env step, the state carries on
+    sigma_delta: SigmaDeltaBlock | None = None  # v3: a sigma-delta policy (layers is empty)
 
     def __post_init__(self) -> None:
         """A manifest is valid from construction on, however it was made."""
@@ -69,7 +74,7 @@ class Manifest:
             raise ManifestError(
                 f"schema {self.schema!r} is not one of {', '.join(map(repr, READABLE_SCHEMAS))}"
             )
-        if self.schema == MANIFEST_SCHEMA and not isinstance(self.track, dict):
+        if self.schema != READABLE_SCHEMAS[0] and not isinstance(self.track, dict):
             raise ManifestError(f"a {MANIFEST_SCHEMA} manifest embeds its track")
         if self.encoding not in ENCODINGS:
             raise ManifestError(f"unknown encoding {self.encoding!r}; choose one of {ENCODINGS}")
@@ -89,8 +94,15 @@ class Manifest:
             raise ManifestError(
                 f"unknown discretisation {self.discretisation!r}; choose 'euler' or 'exact'"
             )
-        if self.num_steps < 1 or not self.layers:
+        if self.num_steps < 1 or not (self.layers or self.sigma_delta):
             raise ManifestError("a manifest needs num_steps >= 1 and at least one layer")
+        if (self.sigma_delta is not None) != (self.encoding == "delta") or (
+            self.sigma_delta is not None and (self.layers or self.num_steps != 1)
+        ):
+            raise ManifestError(
+                "a sigma-delta manifest has encoding 'delta', num_steps 1, no LIF layers and a "
+                "sigma_delta block; a LIF manifest has none of them"
+            )
         dims = {len(getattr(self, k)) for k in ("obs_mean", "obs_std", "obs_low", "obs_high")}
         if len(dims) != 1:
             raise ManifestError("obs_mean, obs_std, obs_low and obs_high differ in length")
@@ -113,6 +125,8 @@ class Manifest:
                 del layer["alpha"]
         if data["discretisation"] == "euler":  # the default, as every manifest before it
             del data["discretisation"]
+        if self.sigma_delta is not None:
+            data["sigma_delta"] = self.sigma_delta.as_dict()
         return json.dumps(data, indent=2) + "\n"
 
     @classmethod
@@ -130,6 +144,8 @@ class Manifest:
             data["layers"] = tuple(LayerSpec(**layer) for layer in data["layers"])
             for key in ("obs_mean", "obs_std", "obs_low", "obs_high"):
                 data[key] = tuple(float(x) for x in data[key])
+            if data.get("sigma_delta") is not None:
+                data["sigma_delta"] = SigmaDeltaBlock.from_dict(data["sigma_delta"])
             return cls(**data)
         except (KeyError, TypeError) as exc:
             raise ManifestError(f"{source}: malformed manifest ({exc})") from exc
