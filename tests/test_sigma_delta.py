@@ -202,3 +202,32 @@ def test_reference_is_bit_exact_with_lavas_own_processes(
     assert max(np.abs(got[f"s{i}"]).max() for i in range(n_layers)) > 255  # graded, > 8 bits
     np.testing.assert_array_equal(got[f"s{n_layers}"], out)
     assert np.count_nonzero(out) > 20 and 0 < lava_counts.sum() < lava_counts.size * 8
+
+
+def test_spec_from_block_puts_each_layers_unit_into_integer_weights() -> None:
+    """Fixed point: W_int = round(W s_in / s_out), b_int = round(b / s); the integer chain at
+    zero thresholds equals the real network to within the units' rounding; float64 keeps the
+    real weights and scales the thresholds by each unit."""
+    from snnkart.backends.sigma_delta import input_integers, spec_from_block
+    from snnkart.contract.sigma_delta import SigmaDeltaBlock, SigmaDeltaLayer
+
+    rng = np.random.default_rng(3)
+    w = [rng.normal(0, 0.5, (6, 4)), rng.normal(0, 0.5, (2, 6))]
+    b = [rng.normal(0, 0.1, 6), np.zeros(2)]
+    block = SigmaDeltaBlock(
+        layers=(SigmaDeltaLayer("fc1", 6, act_scale=3e-4, vth=5),),
+        readout_node="fc2", input_scale=0.04, out_scale=3e-6, vth_in=1,
+    )  # fmt: skip
+    fixed = spec_from_block(block, w, b, "fixed")
+    np.testing.assert_array_equal(fixed.weights[0], np.rint(w[0] * 0.04 / 3e-4))
+    np.testing.assert_array_equal(fixed.biases[0], np.rint(b[0] / 3e-4))
+    assert fixed.vth == (5.0,) and fixed.vth_in == 1
+    flt = spec_from_block(block, w, b, "float64")
+    assert flt.vth == (5 * 3e-4,) and flt.vth_in == 0.04
+    z = rng.uniform(-2, 2, (5, 4))
+    x = input_integers(block, z)
+    zero = SigmaDeltaSpec(fixed.weights, fixed.biases, (0.0,), "fixed")
+    out = relu_network(zero, x) * block.out_scale
+    real = np.maximum(z @ w[0].T + b[0], 0) @ w[1].T
+    np.testing.assert_allclose(out, real, atol=0.05)
+    assert np.abs(out - real).max() > 0  # the units' rounding is real, and small

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from snnkart.backends.base import Arithmetic
+from snnkart.contract.sigma_delta import SigmaDeltaBlock
 from snnkart.errors import DeployError
 
 WEIGHT_BITS = 8
@@ -217,3 +218,54 @@ def relu_network(spec: SigmaDeltaSpec, xs: np.ndarray) -> np.ndarray:
 def _dense_all(spec: SigmaDeltaSpec, w: np.ndarray, h: np.ndarray) -> np.ndarray:
     acc = h @ w.T
     return _shift(acc, spec.weight_exp) if spec.fixed else acc
+
+
+def spec_from_block(
+    block: SigmaDeltaBlock,
+    weights: list[np.ndarray],
+    biases: list[np.ndarray],
+    arithmetic: Arithmetic,
+) -> SigmaDeltaSpec:
+    """The chain a manifest's sigma-delta block makes of the graph's affine layers (``weights[i]``
+    ``[n_out, n_in]`` and ``biases[i]``, hidden layers then the readout, as trained, float32).
+
+    Fixed point: integer weights ``round(W_l * s_{l-1} / s_l)`` and biases ``round(b_l / s_l)``
+    in each layer's unit (:mod:`snnkart.contract.sigma_delta`), thresholds as given. float64:
+    the real weights and biases, thresholds ``vth * s_l``. The readout bias stays on the host.
+    """
+    if len(weights) != len(block.layers) + 1 or len(biases) != len(weights):
+        raise DeployError(
+            f"the graph has {len(weights)} affine layers but the sigma-delta block "
+            f"{len(block.layers)} hidden layers + 1 readout: export the policy again"
+        )
+    units = [block.input_scale, *(la.act_scale for la in block.layers), block.out_scale]
+    hidden = range(len(block.layers))
+    if arithmetic == "fixed":
+        ws = [np.rint(np.asarray(w, np.float64) * units[i] / units[i + 1]).astype(np.int64)
+              for i, w in enumerate(weights)]  # fmt: skip
+        bs = [np.rint(np.asarray(biases[i], np.float64) / units[i + 1]).astype(np.int64)
+              for i in hidden]  # fmt: skip
+        vth: list[float] = [float(la.vth) for la in block.layers]
+        vth_in: float = block.vth_in
+    else:
+        ws = [np.asarray(w, np.float64) for w in weights]
+        bs = [np.asarray(biases[i], np.float64) for i in hidden]
+        vth = [la.vth * la.act_scale for la in block.layers]
+        vth_in = block.vth_in * block.input_scale
+    return SigmaDeltaSpec(
+        weights=tuple(ws),
+        biases=tuple(bs),
+        vth=tuple(vth),
+        arithmetic=arithmetic,
+        vth_in=vth_in,
+        num_message_bits=block.num_message_bits,
+    )
+
+
+def input_integers(block: SigmaDeltaBlock, z: np.ndarray) -> np.ndarray:
+    """The host's message-unit input: ``round(z / input_scale)`` clipped to ``input_bits``
+    signed bits (``z``: the normalised, clipped observation)."""
+    top = 2 ** (block.input_bits - 1) - 1
+    return np.clip(np.rint(np.asarray(z, np.float64) / block.input_scale), -top, top).astype(
+        np.int64
+    )
