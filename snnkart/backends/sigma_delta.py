@@ -269,3 +269,12 @@ def input_integers(block: SigmaDeltaBlock, z: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(np.asarray(z, np.float64) / block.input_scale), -top, top).astype(
         np.int64
     )
+
+
+def readout_value(
+    block: SigmaDeltaBlock, sigma: np.ndarray, bias: np.ndarray, arithmetic: Arithmetic
+) -> np.ndarray:
+    """The host's readout from the readout Sigma's value: ``sigma * out_scale + b`` in fixed
+    point (``sigma`` in the readout's unit), ``sigma + b`` in float64."""
+    scale = block.out_scale if arithmetic == "fixed" else 1.0
+    return np.asarray(sigma, np.float64) * scale + np.asarray(bias, np.float64)
