@@ -318,3 +318,21 @@ def test_a_failed_evaluation_stops_the_commands_still_running(
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
+
+
+def test_a_policy_prefixed_variant_runs_only_in_that_policys_cells(tmp_path: Path) -> None:
+    """'snn:t4' adds T = 4 runs to the SNN cells only; the ANN cell, with no variant of its own,
+    runs once as it is; an unprefixed variant runs in every cell."""
+    path = tmp_path / "s.toml"
+    path.write_text(
+        'schema = "snnkart/study-config/v1"\ndata = "tuning"\nenvs = ["grid"]\n'
+        'policies = ["ann", "snn"]\nseeds = [1]\n[variants]\n"snn:t4" = ["snn.num_steps=4"]\n'
+        '"snn:t2" = ["snn.num_steps=2"]\n'
+    )
+    names = [r.spec.name for r in plan(load_study(path))]
+    assert names == ["small_S-grid-ann-s1", "small_S-grid-snn-t4-s1", "small_S-grid-snn-t2-s1"]
+    t4 = next(r for r in plan(load_study(path)) if r.variant == "t4")
+    assert t4.spec.config.snn.num_steps == 4
+    path.write_text(path.read_text() + 'both = ["seed=1"]\n')
+    names = [r.spec.name for r in plan(load_study(path))]
+    assert names[:2] == ["small_S-grid-ann-both-s1", "small_S-grid-snn-t4-s1"]

@@ -99,7 +99,7 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     for track, env, policy in itertools.product(study.tracks, study.envs, study.policies):
         cell_sets = [*study.cells.get(f"{env}-{policy}", []),
                      *study.cells.get(f"{track_stem(track)}/{env}-{policy}", [])]  # fmt: skip
-        for (variant, variant_sets), seed in itertools.product(variants, study.seeds):
+        for (variant, variant_sets), seed in itertools.product(_of(variants, policy), study.seeds):
             config = load_config(
                 overrides={"env": env, "policy": policy, "track": track, "seed": seed,
                            "total_steps": study.steps},
@@ -117,6 +117,14 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
                 )
             runs.append(Run(track, env, policy, seed, RunSpec(name, config), variant))
     return runs if only is None else _only(runs, only)
+
+
+def _of(variants: list[tuple[str, list[str]]], policy: str) -> list[tuple[str, list[str]]]:
+    """The variants a policy kind's cells run: those not restricted to another kind
+    ('POLICY:NAME'), named without the prefix; none at all = the cell once, as it is."""
+    mine = [(name.rpartition(":")[2], sets) for name, sets in variants
+            if name.rpartition(":")[0] in ("", policy)]  # fmt: skip
+    return mine or [("", [])]
 
 
 def _only(runs: list[Run], patterns: list[str]) -> list[Run]:

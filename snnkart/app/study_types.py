@@ -42,15 +42,19 @@ class StudyConfig(BaseModel):
     )
     variants: dict[str, list[str]] = Field(
         default_factory=dict,
-        description="an ablation: every cell once per named variant (its KEY=VALUE settings)",
+        description="an ablation: every cell once per named variant (its KEY=VALUE settings); "
+        "a name 'POLICY:NAME' applies to that policy kind's cells only",
     )
 
     @field_validator("variants")
     @classmethod
     def _variant_names(cls, variants: dict[str, list[str]]) -> dict[str, list[str]]:
         for name in variants:
-            if not re.fullmatch(r"[A-Za-z0-9_.]+", name):
-                raise ValueError(f"variant name {name!r}: use letters, digits, '_' and '.'")
+            if not re.fullmatch(r"([a-z-]+:)?[A-Za-z0-9_.]+", name):
+                raise ValueError(
+                    f"variant name {name!r}: use letters, digits, '_' and '.', after an "
+                    "optional 'POLICY:' that restricts it to that policy kind"
+                )
         return variants
 
 
