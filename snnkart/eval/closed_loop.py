@@ -259,7 +259,8 @@ def summary_lines(record: DeployRecord) -> list[str]:
         lines.append(
             f"parity vs numpy reference ({p.same_arithmetic_reference}, same arithmetic): "
             f"{p.same_arithmetic_mismatched_windows} of {p.env_steps} env steps differ "
-            f"(spike rasters), {p.same_arithmetic_mismatched_actions} actions differ"
+            f"({'sent values, readout' if c.sigma_delta else 'spike rasters'}), "
+            f"{p.same_arithmetic_mismatched_actions} actions differ"
         )
     if p.env_steps and p.float32_identical_action_fraction is not None:
         lines.append(
