@@ -60,7 +60,7 @@ def test_a_sigma_delta_manifest_loads_and_the_lif_loader_names_the_way(
     policy = open_policy(policies["vth"])
     assert isinstance(policy, SigmaDeltaPolicy)
     assert policy.sizes == (21, 64, 64, 5) and policy.block.rows == 4
-    with pytest.raises(NIRFileError, match="is a sigma-delta policy.*open_policy"):
+    with pytest.raises(NIRFileError, match=r"is a sigma-delta policy.*open_policy"):
         load_policy(policies["vth"])
 
 
