@@ -4,6 +4,7 @@ nir-ref and lava-sim closed loop, the held schedule, parity and the counts."""
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -204,3 +205,24 @@ def test_a_broken_lava_engine_is_caught_by_the_parity_check(
         _deploy(policies["vth"], "lava-sim", "fixed", 1, None)  # type: ignore[arg-type]
     first = caught.value.record.parity.first_same_arithmetic_mismatch
     assert first["layer"] == 3  # the readout Sigma: the first population after the broken synapse
+
+
+@pytest.mark.parametrize("command", ["deploy", "eval"])
+def test_the_cli_deploys_and_evaluates_a_sigma_delta_nir_file(
+    policies: dict[str, Path], tmp_path: Path, command: str
+) -> None:
+    from typer.testing import CliRunner
+
+    from snnkart.cli import app
+
+    out = tmp_path / "out"
+    result = CliRunner().invoke(
+        app,
+        [command, str(policies["vth"]), "--backend", "nir-ref", "--precision", "float",
+         "--episodes", "1", "--out", str(out)],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    record = json.loads((out / "deploy.json").read_text())
+    assert record["schema"] == "snnkart/deploy/v2" and record["precision"] == "float64"
+    assert record["counts"]["sigma_delta"]["layers"] == ["input", "fc1", "fc2", "readout"]
+    assert "messages input" in " ".join(result.output.split())
