@@ -226,3 +226,24 @@ def test_the_cli_deploys_and_evaluates_a_sigma_delta_nir_file(
     assert record["schema"] == "snnkart/deploy/v2" and record["precision"] == "float64"
     assert record["counts"]["sigma_delta"]["layers"] == ["input", "fc1", "fc2", "readout"]
     assert "messages input" in " ".join(result.output.split())
+
+
+def test_a_graph_with_other_nodes_and_float32_are_one_clear_error(
+    policies: dict[str, Path], tmp_path: Path
+) -> None:
+    import nir
+
+    from snnkart.backends.registry import open_backend
+    from snnkart.errors import DeployError
+
+    with pytest.raises(DeployError, match="sigma-delta policy runs in Lava's arithmetics only"):
+        open_backend(policies["vth"], "nir-ref", "float32")
+    graph = nir.read(policies["vth"])
+    graph.nodes["fc2"] = nir.LIF(
+        tau=np.ones(64), r=np.ones(64), v_leak=np.zeros(64), v_threshold=np.ones(64)
+    )
+    target = tmp_path / "policy.nir"
+    nir.write(target, graph)
+    manifest_path(target).write_text(manifest_path(policies["vth"]).read_text())
+    with pytest.raises(NIRFileError, match="node 'fc2' is a LIF; a sigma-delta graph holds only"):
+        open_policy(target)
