@@ -411,6 +411,47 @@ def test_shared_memory_left_by_the_tree_under_test_is_reported(
         os.unlink(f"/dev/shm/{name}")  # what the killed deploy left, and only that
 
 
+# -- deploy a sigma-delta policy on lava-sim (the same worker, another network) ---------------
+
+
+@pytest.fixture(scope="module")
+def sdnn_policy(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from sigma_delta_policy import write_sigma_delta_policy
+
+    return write_sigma_delta_policy(tmp_path_factory.mktemp("fault-sdnn"), vth=4, vth_in=2)
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(200)
+@pytest.mark.parametrize("phase", ["lava-startup", "window", "reply", "close"])
+def test_sigint_during_a_sigma_delta_lava_deploy(
+    sdnn_policy: Path, tmp_path: Path, phase: str
+) -> None:
+    fault, episodes, env = _phase_fault(phase, signal.SIGINT)
+    o = run_faulted(deploy_args(sdnn_policy, tmp_path / "out", episodes), tmp_path, fault, env)
+    assert_interrupted(o, signal.SIGINT, phase)
+    assert "no Lava process is left running" in o.stderr, o.context()
+    assert not (tmp_path / "out" / "deploy.json").exists()
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(200)
+@pytest.mark.parametrize(
+    ("victim", "expected"),
+    [(_kill_worker, "the Lava backend died"), (_kill_lava_process, "a Lava process failed")],
+    ids=["worker", "lava-process"],
+)
+def test_a_killed_sigma_delta_backend_is_reported_not_waited_for(
+    sdnn_policy: Path, tmp_path: Path, victim: Callable, expected: str
+) -> None:
+    args = deploy_args(sdnn_policy, tmp_path / "out")
+    o = run_faulted(args, tmp_path, "step@20:SIGCONT", act=victim)
+    assert o.returncode not in (0, 130, 143), o.context()
+    assert "error:" in o.stderr and expected in o.stderr, o.context()
+    assert o.took_s <= FAULT_BOUND_S, o.context()
+    assert not (tmp_path / "out" / "deploy.json").exists()
+
+
 # -- train -----------------------------------------------------------------------------------
 
 

@@ -154,6 +154,7 @@ def test_an_older_deploy_file_without_a_field_it_needs_is_refused_in_one_line(
 ) -> None:
     data = json.loads(FILES[0][1].read_text())
     del data["network"]  # deployments before the network description was recorded
+    data["schema"] = "snnkart/deploy/v1"
     old = tmp_path / "deploy.json"
     old.write_text(json.dumps(data))
     with pytest.raises(RecordError) as caught:

@@ -105,7 +105,7 @@ def load_policy(
         from snnkart.rl.trained import TorchPredictor, load_run
 
         return _TorchPolicy(TorchPredictor(load_run(path, checkpoint), seed=seed))
-    from snnkart.backends.loading import load_policy as read_policy
+    from snnkart.backends.loading import open_policy as read_policy
     from snnkart.backends.registry import open_backend
 
     word = _precision(backend, precision)

@@ -55,6 +55,7 @@ class Backend:
     Subclasses open their engine in :meth:`open_engine`; everything else is here."""
 
     name: ClassVar[str]
+    float32_form: ClassVar[bool] = True  # the policy has a float32 (torch order) reference
 
     def __init__(
         self, source: str | Path | LoadedPolicy, arithmetic: Arithmetic, seed: int = 0
@@ -67,6 +68,11 @@ class Backend:
         self.T = self.manifest.num_steps
         self.counts = SpikeCounts(len(self.chain.layers))
         self.engine = self.open_engine(self.policy, arithmetic)
+
+    @property
+    def raster_sizes(self) -> tuple[int, ...]:
+        """The raster's blocks of columns: each spiking layer's neurons."""
+        return self.chain.sizes
 
     def open_engine(self, policy: LoadedPolicy, arithmetic: Arithmetic) -> Engine:
         """The engine running ``policy`` in ``arithmetic``, one window per env step."""

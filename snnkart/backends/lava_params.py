@@ -17,6 +17,7 @@ import numpy as np
 from snnkart.backends.base import Arithmetic
 from snnkart.backends.network import ChainNetwork
 from snnkart.backends.quantize import FixedPointNetwork
+from snnkart.backends.sigma_delta import SigmaDeltaSpec
 
 
 @dataclass(frozen=True)
@@ -79,4 +80,45 @@ def lava_spec(
 ) -> LavaSpec:
     return LavaSpec(
         arithmetic, num_steps, tuple(chain.sizes), lava_layers(chain, arithmetic, fixed)
+    )
+
+
+@dataclass(frozen=True)
+class SigmaDeltaLavaSpec:
+    """What the Lava worker builds for a sigma-delta chain
+    (:class:`~snnkart.backends.sigma_delta.SigmaDeltaSpec`): ``Delta(vth_in) -> Dense(weights[0])
+    -> SigmaDelta(vth[0], biases[0], ReLU) -> ... -> Dense(weights[-1]) -> Sigma``, graded
+    Dense messages, ``rows`` Lava steps per env step with the input held. Weights as the spec
+    has them (Lava's fixed-point Dense clips and truncates them itself)."""
+
+    arithmetic: Arithmetic
+    rows: int
+    weights: tuple[np.ndarray, ...]
+    biases: tuple[np.ndarray, ...]
+    vth: tuple[float | int, ...]
+    vth_in: float | int
+    num_message_bits: int
+
+    @property
+    def sizes(self) -> tuple[int, ...]:
+        """Every recorded population: the input Delta, each SigmaDelta, the readout Sigma."""
+        return (int(self.weights[0].shape[1]), *(int(w.shape[0]) for w in self.weights))
+
+
+def sigma_delta_lava_spec(spec: SigmaDeltaSpec, rows: int) -> SigmaDeltaLavaSpec:
+    """The Lava processes' parameters of ``spec`` (exponents 0 and no ``cum_error``, as a
+    manifest's block has them)."""
+    if (spec.weight_exp, spec.spike_exp, spec.state_exp, spec.cum_error) != (0, 0, 0, False):
+        raise ValueError("the Lava sigma-delta worker runs exponents 0 without cum_error")
+    fixed = spec.arithmetic == "fixed"
+    dtype = np.int32 if fixed else np.float64
+    cast = int if fixed else float
+    return SigmaDeltaLavaSpec(
+        arithmetic=spec.arithmetic,
+        rows=rows,
+        weights=tuple(np.asarray(w, dtype) for w in spec.weights),
+        biases=tuple(np.asarray(b, dtype) for b in spec.biases),
+        vth=tuple(cast(v) for v in spec.vth),
+        vth_in=cast(spec.vth_in),
+        num_message_bits=spec.num_message_bits,
     )

@@ -37,7 +37,7 @@ import numpy as np
 from snnkart import faults
 from snnkart.backends.backend import Backend, Engine
 from snnkart.backends.base import Arithmetic
-from snnkart.backends.lava_params import LavaSpec, lava_spec
+from snnkart.backends.lava_params import LavaSpec, SigmaDeltaLavaSpec, lava_spec
 from snnkart.backends.lava_worker import HEADER, write_msg
 from snnkart.backends.loading import LoadedPolicy
 from snnkart.backends.quantize import check_lava_compatible
@@ -77,10 +77,11 @@ class LavaWorker:
     payload_bits = 0  # binary spikes
     is_reference = False
 
-    def __init__(self, spec: LavaSpec) -> None:
+    def __init__(self, spec: LavaSpec | SigmaDeltaLavaSpec) -> None:
         self.arithmetic: Arithmetic = spec.arithmetic
-        self.steps = spec.num_steps
-        self.depth = len(spec.sizes) - 1  # one step per Dense
+        if isinstance(spec, LavaSpec):
+            self.steps = spec.num_steps
+            self.depth = len(spec.sizes) - 1  # one step per Dense
         self.stderr = tempfile.TemporaryFile()
         self._tail = ""  # the last lines of stderr, kept when the file is closed
         env = {**os.environ, "PYTHONUNBUFFERED": "1", "SNNKART_FAULT_PGID": str(os.getpgrp())}
@@ -198,12 +199,16 @@ class LavaWorker:
                 self.kill()
             raise
 
-    def window(self, current: np.ndarray) -> np.ndarray:
-        kind, raster = self._exchange(("window", current), "window", WINDOW_TIMEOUT)
+    def raster(self, values: np.ndarray) -> np.ndarray:
+        """One env step's input in, the window's raster out (as the worker's network gives it)."""
+        kind, raster = self._exchange(("window", values), "window", WINDOW_TIMEOUT)
         if kind != "raster":
             self.kill()
             raise LavaBackendError(f"Lava worker: unexpected reply {kind!r}")
-        return np.asarray(raster, dtype=bool)
+        return np.asarray(raster)
+
+    def window(self, current: np.ndarray) -> np.ndarray:
+        return np.asarray(self.raster(current), dtype=bool)
 
     def reset(self) -> None:
         """Nothing to forget at an episode's start: every layer is reset inside each window."""

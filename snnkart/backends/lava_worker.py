@@ -5,7 +5,8 @@ Run as ``python -m snnkart.backends.lava_worker`` by :mod:`snnkart.backends.lava
 imported by the rest of snnkart: importing lava sets the multiprocessing start method to fork,
 which must not happen in a process that trains or uses torch's multiprocessing.
 
-Protocol (length-prefixed pickles): stdin receives a :class:`~snnkart.backends.lava_params.LavaSpec`, then ``("window", current)``
+Protocol (length-prefixed pickles): stdin receives a :class:`~snnkart.backends.lava_params.LavaSpec`
+(or a :class:`~snnkart.backends.lava_params.SigmaDeltaLavaSpec`: :class:`SigmaDeltaNetwork`), then ``("window", current)``
 per env step and finally ``("close",)``; the protocol stream answers ``("ready", info)``,
 ``("raster", array)`` per window, ``("closed", info)`` or ``("error", message)``. Anything
 Lava prints goes to stderr. On end of input (the parent died) the run is closed the same way.
@@ -36,7 +37,7 @@ import numpy as np
 from snnkart.backends import lava_compat
 
 if TYPE_CHECKING:
-    from snnkart.backends.lava_params import LavaSpec
+    from snnkart.backends.lava_params import LavaSpec, SigmaDeltaLavaSpec
 
 RECV_TIMEOUT = 60.0
 """Seconds one window may take before the worker declares Lava hung."""
@@ -70,24 +71,87 @@ def read_msg(stream: IO[bytes]) -> Any:
     return pickle.loads(data)
 
 
-class LavaNetwork:
-    """The compiled Lava network and its running runtime."""
+class BridgedNetwork:
+    """A compiled Lava network behind a :class:`HostBridge`, running in one long non-blocking
+    ``RunSteps``: one host message in and one raster out per env step (``W`` Lava steps)."""
 
-    def __init__(self, spec: LavaSpec) -> None:
+    W: int
+    sizes: tuple[int, ...]
+    msg_size: int  # values per host message, the command flag included
+
+    def _start(self, bridge: Any, fixed: bool) -> None:
+        """Compile, create the runtime (its processes ignore SIGINT) and start the run."""
         from lava.magma.core.run_conditions import RunSteps
         from lava.magma.core.run_configs import Loihi2SimCfg
+
+        from snnkart.faults import fault_point
+
+        self.bridge = bridge
+        self.fixed = fixed
+        tag = "fixed_pt" if fixed else "floating_pt"
+        self.run_cfg = Loihi2SimCfg(select_tag=tag)
+        self.dtype = np.int32 if fixed else np.float64
+        t0 = time.perf_counter()
+        # SIGINT is ignored while the runtime forks its processes, so they inherit "ignore":
+        # the parent owns Ctrl-C and ends the run through the close request.
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            fault_point("lava-startup")  # (a delay lands the signal while the runtime forks)
+            bridge.create_runtime(run_cfg=self.run_cfg)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+        self.runtime = bridge.runtime
+        self.startup_s = time.perf_counter() - t0
+        self.host_send = bridge.host_in.external_pipe_csp_send_port
+        self.host_recv = bridge.host_out.external_pipe_csp_recv_port
+        bridge.run(condition=RunSteps(num_steps=2**62, blocking=False), run_cfg=self.run_cfg)
+        self.windows = 0
+        self.closed = False
+
+    def _recv(self, timeout: float = RECV_TIMEOUT) -> np.ndarray:
+        """Receive from the bridge, failing fast when a Lava process died or nothing comes."""
+        return lava_compat.receive(self.host_recv, self.runtime, timeout)
+
+    def exchange(self, values: np.ndarray) -> np.ndarray:
+        """Send one env step's input to the bridge; the window's raster ``[W, sum(sizes)]``."""
+        msg = np.zeros(self.msg_size, dtype=self.dtype)
+        msg[:-1] = np.asarray(values).reshape(-1)
+        self.host_send.send(msg)
+        raster = self._recv()
+        self.windows += 1
+        return raster.reshape(self.W, sum(self.sizes))
+
+    def window(self, values: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """End the run through the bridge's stop request, then stop the runtime."""
+        if self.closed:
+            return
+        self.closed = True
+        msg = np.zeros(self.msg_size, dtype=self.dtype)
+        msg[-1] = 1
+        self.host_send.send(msg)
+        self.runtime.wait()  # receives REQ_STOP and stops the runtime
+        if lava_compat.is_started(self.runtime):
+            self.runtime.stop()
+
+
+class LavaNetwork(BridgedNetwork):
+    """A LIF chain: ``LIFReset`` populations and ``Dense`` synapses (module docstring)."""
+
+    def __init__(self, spec: LavaSpec) -> None:
         from lava.proc.dense.process import Dense
         from lava.proc.lif.process import LIFReset
 
         from snnkart.backends.lava_procs.bridge import HostBridge
-        from snnkart.faults import fault_point
 
-        self.fixed = spec.arithmetic == "fixed"
         self.T = int(spec.num_steps)
         self.sizes = tuple(int(n) for n in spec.sizes)
         K = len(self.sizes)
         self.W = self.T + K - 1
-        self.bridge = HostBridge(sizes=self.sizes, num_steps=self.T, name="host_bridge")
+        self.msg_size = self.T * self.sizes[0] + 1
+        bridge = HostBridge(sizes=self.sizes, num_steps=self.T, name="host_bridge")
         self.lifs = []
         for i, layer in enumerate(spec.layers):
             lif = LIFReset(
@@ -102,64 +166,75 @@ class LavaNetwork:
                 name=f"lif{i}",
             )
             self.lifs.append(lif)
-            lif.s_out.connect(getattr(self.bridge, f"s_in{i}"))
-        self.bridge.a_out.connect(self.lifs[0].a_in)
+            lif.s_out.connect(getattr(bridge, f"s_in{i}"))
+        bridge.a_out.connect(self.lifs[0].a_in)
+        fixed = spec.arithmetic == "fixed"
         self.dense = []
         for i in range(1, K):
             layer = spec.layers[i]
-            kwargs: dict[str, Any] = {}
-            if self.fixed:
-                kwargs = {"num_weight_bits": 8, "weight_exp": 0}
+            kwargs: dict[str, Any] = {"num_weight_bits": 8, "weight_exp": 0} if fixed else {}
             dense = Dense(weights=layer.weight, name=f"dense{i}", **kwargs)
             self.lifs[i - 1].s_out.connect(dense.s_in)
             dense.a_out.connect(self.lifs[i].a_in)
             self.dense.append(dense)
-        tag = "fixed_pt" if self.fixed else "floating_pt"
-        self.run_cfg = Loihi2SimCfg(select_tag=tag)
-        self.dtype = np.int32 if self.fixed else np.float64
-        t0 = time.perf_counter()
-        # SIGINT is ignored while the runtime forks its processes, so they inherit "ignore":
-        # the parent owns Ctrl-C and ends the run through the close request.
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        try:
-            fault_point("lava-startup")  # (a delay lands the signal while the runtime forks)
-            self.bridge.create_runtime(run_cfg=self.run_cfg)
-        finally:
-            signal.signal(signal.SIGINT, previous)
-        self.runtime = self.bridge.runtime
-        self.startup_s = time.perf_counter() - t0
-        self.host_send = self.bridge.host_in.external_pipe_csp_send_port
-        self.host_recv = self.bridge.host_out.external_pipe_csp_recv_port
-        self.bridge.run(condition=RunSteps(num_steps=2**62, blocking=False), run_cfg=self.run_cfg)
-        self.windows = 0
-        self.closed = False
-
-    def _recv(self, timeout: float = RECV_TIMEOUT) -> np.ndarray:
-        """Receive from the bridge, failing fast when a Lava process died or nothing comes."""
-        return lava_compat.receive(self.host_recv, self.runtime, timeout)
+        self._start(bridge, fixed)
 
     def window(self, current: np.ndarray) -> np.ndarray:
-        msg = np.zeros(self.T * self.sizes[0] + 1, dtype=self.dtype)
-        msg[:-1] = np.asarray(current).reshape(-1)
-        self.host_send.send(msg)
-        raster = self._recv()
-        self.windows += 1
-        return raster.reshape(self.W, sum(self.sizes)) != 0
-
-    def close(self) -> None:
-        """End the run through the bridge's stop request, then stop the runtime."""
-        if self.closed:
-            return
-        self.closed = True
-        msg = np.zeros(self.T * self.sizes[0] + 1, dtype=self.dtype)
-        msg[-1] = 1
-        self.host_send.send(msg)
-        self.runtime.wait()  # receives REQ_STOP and stops the runtime
-        if lava_compat.is_started(self.runtime):
-            self.runtime.stop()
+        return self.exchange(current) != 0
 
 
-def abort(net: LavaNetwork | None) -> None:
+class SigmaDeltaNetwork(BridgedNetwork):
+    """A sigma-delta chain (:class:`~snnkart.backends.lava_params.SigmaDeltaLavaSpec`):
+    ``Delta -> Dense -> SigmaDelta(ReLU) -> ... -> Dense -> Sigma`` of ``lava.proc.sdn`` and
+    graded ``lava.proc.dense``; the bridge holds the host's input for the window's ``rows``
+    steps and records every population's sent values (the Sigma's value) at every row."""
+
+    def __init__(self, spec: SigmaDeltaLavaSpec) -> None:
+        from lava.proc.dense.process import Dense
+        from lava.proc.sdn.process import ActivationMode, Delta, Sigma, SigmaDelta
+
+        from snnkart.backends.lava_procs.bridge import HostBridge
+
+        fixed = spec.arithmetic == "fixed"
+        self.sizes, self.W = spec.sizes, spec.rows
+        self.msg_size = self.sizes[0] + 1
+        bridge = HostBridge(
+            sizes=self.sizes, num_steps=1, window=self.W, held=True, name="host_bridge"
+        )
+        sender: Any = Delta(shape=(self.sizes[0],), vth=spec.vth_in)
+        bridge.a_out.connect(sender.a_in)
+        kwargs: dict[str, Any] = {"num_weight_bits": 8, "weight_exp": 0} if fixed else {}
+        hidden = len(spec.weights) - 1
+        for i, w in enumerate(spec.weights):
+            dense = Dense(
+                weights=w, num_message_bits=spec.num_message_bits, name=f"dense{i + 1}", **kwargs
+            )
+            sender.s_out.connect([dense.s_in, getattr(bridge, f"s_in{i}")])
+            if i < hidden:
+                sender = SigmaDelta(
+                    shape=(w.shape[0],), vth=spec.vth[i], bias=spec.biases[i],
+                    act_mode=ActivationMode.RELU,
+                )  # fmt: skip
+            else:
+                sender = Sigma(shape=(w.shape[0],))
+            dense.a_out.connect(sender.a_in)
+        sender.s_out.connect(getattr(bridge, f"s_in{hidden + 1}"))
+        self._start(bridge, fixed)
+
+    def window(self, x: np.ndarray) -> np.ndarray:
+        return self.exchange(x)
+
+
+def build_network(spec: LavaSpec | SigmaDeltaLavaSpec) -> BridgedNetwork:
+    """The network ``spec`` describes, compiled and running."""
+    from snnkart.backends.lava_params import SigmaDeltaLavaSpec
+
+    if isinstance(spec, SigmaDeltaLavaSpec):
+        return SigmaDeltaNetwork(spec)
+    return LavaNetwork(spec)
+
+
+def abort(net: BridgedNetwork | None) -> None:
     """Last resort after a failure: terminate this runtime's processes and shared memory."""
     if net is not None:
         lava_compat.terminate(net.runtime)
@@ -172,7 +247,7 @@ def main() -> int:
     proto_out = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # Lava's prints go to stderr
     proto_in = sys.stdin.buffer
-    net: LavaNetwork | None = None
+    net: BridgedNetwork | None = None
     try:
         spec = read_msg(proto_in)
         try:
@@ -186,7 +261,7 @@ def main() -> int:
                           "Python 3.10 environment"),
             )  # fmt: skip
             return 3
-        net = LavaNetwork(spec)
+        net = build_network(spec)
         write_msg(proto_out, ("ready", {"startup_s": net.startup_s, "pid": os.getpid()}))
         while True:
             try:

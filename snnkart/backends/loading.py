@@ -23,6 +23,7 @@ from snnkart.backends.network import (
     chain_from_graph,
 )
 from snnkart.backends.quantize import FixedPointNetwork, quantize
+from snnkart.backends.sdnn_policy import SigmaDeltaPolicy, sigma_delta_policy
 from snnkart.contract.manifest import LayerSpec, Manifest, manifest_path
 from snnkart.errors import NIRFileError
 
@@ -52,9 +53,23 @@ class LoadedPolicy:
 
 
 def load_policy(path: str | Path) -> LoadedPolicy:
-    """Read and validate the policy ``path`` (``.nir`` and the manifest beside it)."""
+    """Read and validate the LIF policy ``path`` (``.nir`` and the manifest beside it)."""
+    policy = open_policy(path)
+    if isinstance(policy, SigmaDeltaPolicy):
+        raise NIRFileError(
+            f"{path} is a sigma-delta policy (its manifest has a sigma_delta block), not a LIF "
+            "chain; open it with snnkart.backends.loading.open_policy"
+        )
+    return policy
+
+
+def open_policy(path: str | Path) -> LoadedPolicy | SigmaDeltaPolicy:
+    """Read and validate the policy ``path``: a LIF chain, or a sigma-delta policy when its
+    manifest has a ``sigma_delta`` block (:mod:`snnkart.backends.sdnn_policy`)."""
     path = Path(path)
     graph, manifest = load_nir(path)
+    if manifest.sigma_delta is not None:
+        return sigma_delta_policy(path, graph, manifest)
     return LoadedPolicy(path, graph, manifest, _checked_chain(path, graph, manifest))
 
 

@@ -13,11 +13,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from snnkart.backends.base import Arithmetic
-from snnkart.backends.loading import LoadedPolicy, as_policy
+from snnkart.backends.loading import LoadedPolicy, open_policy
+from snnkart.backends.sdnn_policy import SigmaDeltaPolicy
 from snnkart.errors import DeployError, did_you_mean
 
 if TYPE_CHECKING:
     from snnkart.backends.backend import Backend
+    from snnkart.backends.sdnn_backend import SigmaDeltaBackend
+
+    AnyBackend = Backend | SigmaDeltaBackend
 
 PRECISIONS: dict[str, dict[str, Arithmetic]] = {
     "lava-sim": {"float": "float64", "fixed": "fixed"},
@@ -32,6 +36,11 @@ BACKEND_CLASSES: dict[str, str] = {
 }
 """Per backend, ``module:class`` of its :class:`~snnkart.backends.backend.Backend` subclass,
 whose ``open_engine`` starts its engine; a new engine adds one line here."""
+SIGMA_DELTA_CLASSES: dict[str, str] = {
+    "lava-sim": "snnkart.backends.sdnn_lava:SigmaDeltaLava",
+    "nir-ref": "snnkart.backends.sdnn_backend:SigmaDeltaReference",
+}
+"""The same for a sigma-delta policy (a manifest with a ``sigma_delta`` block)."""
 
 
 def arithmetic_for(backend: str, precision: str) -> Arithmetic:
@@ -60,15 +69,33 @@ def backend_class(backend: str) -> type[Backend]:
 
 
 def make_backend(
-    policy: str | Path | LoadedPolicy, backend: str, arithmetic: Arithmetic, seed: int = 0
-) -> Backend:
+    policy: str | Path | LoadedPolicy | SigmaDeltaPolicy,
+    backend: str,
+    arithmetic: Arithmetic,
+    seed: int = 0,
+) -> AnyBackend:
     """``backend`` running ``policy`` in ``arithmetic`` (already checked by
-    :func:`arithmetic_for`)."""
-    return backend_class(backend)(as_policy(policy), arithmetic, seed)
+    :func:`arithmetic_for`): the LIF chain's backend, or the sigma-delta one."""
+    if not isinstance(policy, LoadedPolicy | SigmaDeltaPolicy):
+        policy = open_policy(policy)
+    if isinstance(policy, LoadedPolicy):
+        return backend_class(backend)(policy, arithmetic, seed)
+    if backend not in SIGMA_DELTA_CLASSES:
+        backend_class(backend)  # raises the error naming the backends
+    if arithmetic == "float32":
+        raise DeployError(
+            "a sigma-delta policy runs in Lava's arithmetics only: --precision fixed or float"
+        )
+    module, name = SIGMA_DELTA_CLASSES[backend].split(":")
+    cls: type[SigmaDeltaBackend] = getattr(importlib.import_module(module), name)
+    return cls(policy, arithmetic, seed)
 
 
 def open_backend(
-    policy: str | Path | LoadedPolicy, backend: str, precision: str, seed: int = 0
-) -> Backend:
+    policy: str | Path | LoadedPolicy | SigmaDeltaPolicy,
+    backend: str,
+    precision: str,
+    seed: int = 0,
+) -> AnyBackend:
     """The backend ``backend`` running ``policy`` in the arithmetic ``precision`` asks for."""
     return make_backend(policy, backend, arithmetic_for(backend, precision), seed)

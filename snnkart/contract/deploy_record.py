@@ -13,13 +13,20 @@ from snnkart.contract.eval_record import EpisodeResult, EvalSummary
 from snnkart.contract.manifest import LayerSpec
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind
 
-DEPLOY = RecordKind("deploy", 1, rerun="snnkart deploy")
+DEPLOY = RecordKind("deploy", 2, rerun="snnkart deploy")
+"""v2 adds ``counts.sigma_delta`` (a sigma-delta policy's counts); v1 files load."""
 DEPLOY_SCHEMA = DEPLOY.tag
 SCHEMA_FILE = Path(__file__).with_name("deploy.schema.json")
 COUNTS_NOTE = (
     "spikes, synops (spikes x fan-out) and neuron_updates of the policy's T logical "
     "SNN steps per env step; pipeline_overhead: the Lava pipeline's fill and drain "
     "steps (L Dense delays per window), not part of the policy's computation"
+)
+SIGMA_DELTA_COUNTS_NOTE = (
+    "sigma-delta policy: per sending layer (input Delta = host encoder, each SigmaDelta, "
+    "readout Sigma) spikes = messages, synops = synaptic_events, neuron_updates = "
+    "updates_clocked over all rows_per_env_step Lava steps (the held schedule); counts.sigma_delta "
+    "names every count (snnkart.backends.sdnn_counts); no pipeline overhead is split off"
 )
 
 
@@ -73,6 +80,36 @@ class OverheadCounts:
 
 
 @dataclass(frozen=True)
+class SigmaDeltaCounts:
+    """A sigma-delta policy's counts, per sending layer (``layers``: ``input`` = the host's
+    Delta encoder, each SigmaDelta's node, the readout Sigma's node), summed over env steps of
+    ``rows_per_env_step`` Lava steps each; defined in :mod:`snnkart.backends.sdnn_counts`."""
+
+    layers: list[str]
+    rows_per_env_step: int
+    num_message_bits: int
+    messages: list[int]
+    payload_bits: list[int]
+    synaptic_events: list[int]
+    updates_clocked: list[int]
+    updates_active: list[int]
+    host_to_chip_bits: int
+    chip_to_host_bits: int
+
+    def minus(self, before: SigmaDeltaCounts) -> SigmaDeltaCounts:
+        """The counts since ``before``."""
+        lists = ("messages", "payload_bits", "synaptic_events", "updates_clocked", "updates_active")
+        diff = {k: [a - b for a, b in zip(getattr(self, k), getattr(before, k), strict=True)]
+                for k in lists}  # fmt: skip
+        return SigmaDeltaCounts(
+            layers=self.layers, rows_per_env_step=self.rows_per_env_step,
+            num_message_bits=self.num_message_bits, **diff,
+            host_to_chip_bits=self.host_to_chip_bits - before.host_to_chip_bits,
+            chip_to_host_bits=self.chip_to_host_bits - before.chip_to_host_bits,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
 class Counts:
     """Operation counts per spiking layer over ``env_steps`` env steps (T logical steps each)."""
 
@@ -81,6 +118,7 @@ class Counts:
     synops: list[int]
     neuron_updates: list[int]
     pipeline_overhead: OverheadCounts | None = field(default=None, metadata=OMIT_NONE)
+    sigma_delta: SigmaDeltaCounts | None = field(default=None, metadata=OMIT_NONE)
 
     def minus(self, before: Counts) -> Counts:
         """The counts since ``before`` (one episode's, from the running totals)."""
@@ -93,9 +131,12 @@ class Counts:
         if now is not None and was is not None:
             overhead = OverheadCounts(sub(now.spikes, was.spikes), sub(now.synops, was.synops),
                                       sub(now.neuron_updates, was.neuron_updates))  # fmt: skip
+        sd = None
+        if self.sigma_delta is not None and before.sigma_delta is not None:
+            sd = self.sigma_delta.minus(before.sigma_delta)
         return Counts(self.env_steps - before.env_steps, sub(self.spikes, before.spikes),
                       sub(self.synops, before.synops),
-                      sub(self.neuron_updates, before.neuron_updates), overhead)  # fmt: skip
+                      sub(self.neuron_updates, before.neuron_updates), overhead, sd)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -154,7 +195,7 @@ class DeployedEpisode(EpisodeResult):
 
 @dataclass(frozen=True)
 class DeployRecord(Record):
-    """``deploy.json`` (``snnkart/deploy/v1``)."""
+    """``deploy.json`` (``snnkart/deploy/v2``)."""
 
     KIND = DEPLOY
 

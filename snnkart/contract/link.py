@@ -33,3 +33,14 @@ def link_bits(
         num_steps * n_first * word_bits(precision),
         num_steps * n_last * max(1, payload_bits),
     )
+
+
+def sigma_delta_link_bits(
+    input_messages: int, n_out: int, num_message_bits: int
+) -> tuple[int, int]:
+    """``(host_to_chip, chip_to_host)`` bits of one env step of a sigma-delta policy, the
+    extension of :func:`link_bits` to graded, sparse messages: the host's input Delta sends only
+    its messages (``input_messages`` x ``num_message_bits``, payload only, no address bits),
+    and the host reads the ``n_out`` readout values once, after the last Lava step, one
+    ``num_message_bits`` word each."""
+    return input_messages * num_message_bits, n_out * num_message_bits

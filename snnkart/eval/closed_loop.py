@@ -26,12 +26,14 @@ from typing import Any, NamedTuple
 
 from snnkart import faults
 from snnkart.backends.base import SpikeCounts
-from snnkart.backends.loading import load_policy
+from snnkart.backends.loading import LoadedPolicy, open_policy
 from snnkart.backends.registry import BACKENDS
+from snnkart.backends.sdnn_counts import SigmaDeltaTotals
 from snnkart.contract.deploy_inputs import INPUTS_FILE, DeployInputs
 from snnkart.contract.deploy_record import (
     COUNTS_NOTE,
     DEPLOY_SCHEMA,
+    SIGMA_DELTA_COUNTS_NOTE,
     Counts,
     DeployedEpisode,
     DeployRecord,
@@ -42,6 +44,7 @@ from snnkart.contract.deploy_record import (
     OverheadCounts,
     ParityRecord,
     QuantLayer,
+    SigmaDeltaCounts,
     Timing,
 )
 from snnkart.contract.manifest import Manifest, ManifestError
@@ -73,8 +76,8 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
     stopped, nothing is written and :class:`~snnkart.faults.Interrupted` is raised."""
     nir_path, backend, precision = request.nir_file, request.backend, request.precision
     seed, out_dir = request.seed, request.out
-    policy = load_policy(nir_path)  # fails fast on a bad file before starting Lava
-    chain, manifest = policy.chain, policy.manifest
+    policy = open_policy(nir_path)  # fails fast on a bad file before starting Lava
+    manifest = policy.manifest
     choice = resolve_track(manifest, request.track)
     gym_env = make_policy_env(manifest, request.env, choice.track)
     if out_dir is not None:
@@ -85,8 +88,10 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         t0 = time.perf_counter()
         primary, exact, float32 = open_backends(policy, backend, request.arithmetic, seed)
         stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
-        # inputs.npz: what entered the chip and what each layer sent, window by window
-        recorder = record_inputs(primary) if out_dir is not None else None
+        # inputs.npz: what entered the chip and what each layer sent, window by window (LIF
+        # chains; a sigma-delta deploy writes deploy.json alone)
+        lif = isinstance(policy, LoadedPolicy)
+        recorder = record_inputs(primary) if out_dir is not None and lif else None  # type: ignore[arg-type]
         run = _Run(CheckedPredictor(primary, exact, float32), time.perf_counter() - t0)
         run.play(gym_env, request.episodes, seed, on_step, on_episode)
     record = DeployRecord(
@@ -95,7 +100,7 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         precision=precision if backend == "lava-sim" else primary.arithmetic,
         nir_file=str(nir_path),
         manifest=_manifest_summary(manifest),
-        network=_network(chain),
+        network=_network(policy),
         env=EnvRecord(
             env=gym_env.unwrapped.env_name,
             **choice.record(),
@@ -108,8 +113,9 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         versions=manifest.versions,
         episodes=run.per_episode,
     )
-    if out_dir is not None and recorder is not None:
-        _write(out_dir, record, recorded_inputs(primary, recorder, seed))
+    if out_dir is not None:
+        inputs = None if recorder is None else recorded_inputs(primary, recorder, seed)  # type: ignore[arg-type]
+        _write(out_dir, record, inputs)
     check_parity(record)
     return record
 
@@ -163,7 +169,7 @@ class _Run:
         return _Results(
             summary=self.summary,
             counts=_counts(primary.counts),
-            counts_note=COUNTS_NOTE,
+            counts_note=COUNTS_NOTE if primary.float32_form else SIGMA_DELTA_COUNTS_NOTE,
             parity=ParityRecord(**self.checked.parity.as_dict()),
             timing=Timing(
                 startup_s=self.startup,
@@ -174,8 +180,13 @@ class _Run:
         )
 
 
-def _network(chain: Any) -> NetworkShape:
-    """The chain's shape, for the energy report's counts."""
+def _network(policy: Any) -> NetworkShape:
+    """The chain's shape, for the energy report's counts (a sigma-delta policy: the input,
+    the SigmaDelta layers and the readout)."""
+    if not isinstance(policy, LoadedPolicy):
+        n_in, *hidden, n_out = policy.sizes
+        return NetworkShape(n_in=n_in, sizes=tuple(hidden), n_out=n_out)
+    chain = policy.chain
     return NetworkShape(
         n_in=chain.n_in,
         sizes=tuple(chain.sizes),
@@ -196,13 +207,14 @@ def _manifest_summary(manifest: Manifest) -> ManifestSummary:
     )
 
 
-def _write(out_dir: Path, record: DeployRecord, inputs: DeployInputs) -> None:
+def _write(out_dir: Path, record: DeployRecord, inputs: DeployInputs | None) -> None:
     """``deploy.json`` and, beside it, ``inputs.npz`` (written first: a deploy.json is there
-    only when its inputs are)."""
+    only when its inputs are; None: no inputs file)."""
     path = out_dir / "deploy.json"
     try:
         faults.fault_point("deploy-write")
-        inputs.save(out_dir / INPUTS_FILE)
+        if inputs is not None:
+            inputs.save(out_dir / INPUTS_FILE)
         try:
             record.write(path)
         except OSError:
@@ -216,13 +228,15 @@ def _write(out_dir: Path, record: DeployRecord, inputs: DeployInputs) -> None:
         ) from exc
 
 
-def _counts(counts: SpikeCounts) -> Counts:
+def _counts(counts: SpikeCounts | SigmaDeltaTotals) -> Counts:
     """A backend's running counts as the record's."""
     c = counts.as_dict()
+    over, sd = c.get("pipeline_overhead"), c.get("sigma_delta")
     return Counts(
         env_steps=c["env_steps"], spikes=c["spikes"], synops=c["synops"],
         neuron_updates=c["neuron_updates"],
-        pipeline_overhead=OverheadCounts(**c["pipeline_overhead"]),
+        pipeline_overhead=None if over is None else OverheadCounts(**over),
+        sigma_delta=None if sd is None else SigmaDeltaCounts(**sd),
     )  # fmt: skip
 
 
@@ -245,7 +259,8 @@ def summary_lines(record: DeployRecord) -> list[str]:
         lines.append(
             f"parity vs numpy reference ({p.same_arithmetic_reference}, same arithmetic): "
             f"{p.same_arithmetic_mismatched_windows} of {p.env_steps} env steps differ "
-            f"(spike rasters), {p.same_arithmetic_mismatched_actions} actions differ"
+            f"({'sent values, readout' if c.sigma_delta else 'spike rasters'}), "
+            f"{p.same_arithmetic_mismatched_actions} actions differ"
         )
     if p.env_steps and p.float32_identical_action_fraction is not None:
         lines.append(
@@ -254,6 +269,10 @@ def summary_lines(record: DeployRecord) -> list[str]:
             f"{p.float32_spike_flips_per_million_neuron_steps or 0:.0f} spike flips per million "
             "neuron-steps"
         )
+    if c.sigma_delta is not None:
+        lines += _sigma_delta_lines(c.sigma_delta, n)
+        lines.append(f"{t.ms_per_env_step:.1f} ms per env step, start-up {t.startup_s:.1f} s")
+        return lines
     lines.append(
         "per env step (policy): spikes "
         + _per_layer(c.spikes, n, ".1f")
@@ -288,6 +307,22 @@ __all__ = [
     "run_deploy",
     "summary_lines",
 ]
+
+
+def _sigma_delta_lines(sd: SigmaDeltaCounts, n: int) -> list[str]:
+    """The sigma-delta counts per env step, each layer by name."""
+
+    def per(values: list[int], fmt: str) -> str:
+        return ", ".join(f"{name} {x / n:{fmt}}" for name, x in zip(sd.layers, values, strict=True))
+
+    return [
+        f"per env step ({sd.rows_per_env_step} Lava steps, state kept across env steps and "
+        f"episodes): messages {per(sd.messages, '.1f')}; synaptic events "
+        f"{per(sd.synaptic_events, '.0f')}",
+        f"neuron updates per env step: clocked {per(sd.updates_clocked, '.0f')}; active "
+        f"{per(sd.updates_active, '.1f')}; link bits host->chip {sd.host_to_chip_bits / n:.0f}, "
+        f"chip->host {sd.chip_to_host_bits / n:.0f}",
+    ]
 
 
 def _per_layer(values: list[float] | list[int], n: int, fmt: str) -> str:

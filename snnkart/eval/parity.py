@@ -6,18 +6,20 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from snnkart import faults
-from snnkart.backends.backend import Backend
-from snnkart.backends.base import Arithmetic, WindowResult
+from snnkart.backends.base import Arithmetic
 from snnkart.backends.loading import LoadedPolicy
-from snnkart.backends.reference import NIRReference
 from snnkart.backends.registry import make_backend
+from snnkart.backends.sdnn_policy import SigmaDeltaPolicy
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.errors import ParityError
+
+if TYPE_CHECKING:
+    from snnkart.backends.registry import AnyBackend
 
 
 @dataclass
@@ -32,6 +34,9 @@ class Parity:
     float32_spike_flips: int = 0
     neuron_steps: int = 0
     float32_count_differences: list[int] = field(default_factory=list)
+    float32_form: bool = True
+    """The policy has a float32 reference (a sigma-delta policy has none: its float32 fields
+    are then left out of the record, not 0)."""
     first_mismatch: dict[str, int] | None = None
     """Where the backend first differed from its same-arithmetic reference: the env step
     (counted over the whole deploy, from 0), the episode, the step within it, the layer and
@@ -39,15 +44,18 @@ class Parity:
 
     def as_dict(self) -> dict[str, Any]:
         n = max(self.env_steps, 1)
+        f32 = self.float32_form
         return {
             "env_steps": self.env_steps,
             "same_arithmetic_reference": self.exact_reference,
             "same_arithmetic_mismatched_windows": self.exact_mismatched_windows,
             "same_arithmetic_mismatched_actions": self.exact_mismatched_actions,
-            "float32_identical_action_fraction": self.float32_action_agreement / n,
-            "float32_spike_flips": self.float32_spike_flips,
+            "float32_identical_action_fraction": (
+                self.float32_action_agreement / n if f32 else None
+            ),
+            "float32_spike_flips": self.float32_spike_flips if f32 else None,
             "float32_spike_flips_per_million_neuron_steps": (
-                1e6 * self.float32_spike_flips / max(self.neuron_steps, 1)
+                1e6 * self.float32_spike_flips / max(self.neuron_steps, 1) if f32 else None
             ),
             "first_same_arithmetic_mismatch": self.first_mismatch,
         }
@@ -62,14 +70,17 @@ class CheckedPredictor:
 
     def __init__(
         self,
-        primary: Backend,
-        exact: Backend | None,
-        float32: Backend | None,
+        primary: AnyBackend,
+        exact: AnyBackend | None,
+        float32: AnyBackend | None,
     ) -> None:
         self.primary = primary
         self.exact = exact
         self.float32 = float32
-        self.parity = Parity(exact_reference=None if exact is None else exact.arithmetic)
+        self.parity = Parity(
+            exact_reference=None if exact is None else exact.arithmetic,
+            float32_form=primary.float32_form,
+        )
         self.step_seconds = 0.0
         self.episode, self.episode_step = -1, 0  # where the first parity mismatch happened
 
@@ -92,7 +103,7 @@ class CheckedPredictor:
             p.exact_mismatched_windows += differs
             p.exact_mismatched_actions += not _same_action(action, self.exact.codec.decode(ref_out))
             if differs and p.first_mismatch is None:
-                p.first_mismatch = _where(window.raster, ref_window.raster, self.exact.chain.sizes)
+                p.first_mismatch = _where(window.raster, ref_window.raster, self.exact.raster_sizes)
                 p.first_mismatch.update(
                     env_step=p.env_steps - 1, episode=self.episode, episode_step=self.episode_step
                 )
@@ -118,13 +129,13 @@ def _where(raster: np.ndarray, reference: np.ndarray, sizes: tuple[int, ...]) ->
     return {"layer": -1, "row": -1}
 
 
-def _flips(a: WindowResult, b: WindowResult) -> int:
+def _flips(a: Any, b: Any) -> int:
     return int(np.count_nonzero(a.logical != b.logical))
 
 
 def open_backends(
-    policy: LoadedPolicy, backend: str, arithmetic: Arithmetic, seed: int
-) -> tuple[Backend, Backend | None, Backend | None]:
+    policy: LoadedPolicy | SigmaDeltaPolicy, backend: str, arithmetic: Arithmetic, seed: int
+) -> tuple[AnyBackend, AnyBackend | None, AnyBackend | None]:
     """The backend, its same-arithmetic reference (None for the reference itself) and the
     float32 reference (None when the backend is the float32 reference), all on ``policy``."""
     primary = make_backend(policy, backend, arithmetic, seed)
@@ -132,9 +143,9 @@ def open_backends(
         exact_arithmetic, float32_arithmetic = primary.parity_references()
         exact = float32 = None
         if exact_arithmetic is not None:
-            exact = NIRReference(policy, exact_arithmetic, seed=seed)
+            exact = make_backend(policy, "nir-ref", exact_arithmetic, seed)
         if float32_arithmetic is not None:
-            float32 = NIRReference(policy, float32_arithmetic, seed=seed)
+            float32 = make_backend(policy, "nir-ref", float32_arithmetic, seed)
     except BaseException:
         primary.close()
         raise
