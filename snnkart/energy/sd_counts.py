@@ -96,7 +96,7 @@ class SigmaDeltaCounts:
         values["sizes"] = tuple(int(n) for n in data["sizes"])
         for name in PER_LAYER:
             v = [float(x) for x in data[name]]
-            values[name] = tuple(v + [0.0] if len(v) == len(values["sizes"]) + 1 else v)
+            values[name] = tuple([*v, 0.0] if len(v) == len(values["sizes"]) + 1 else v)
         return cls(**values)
 
     @property

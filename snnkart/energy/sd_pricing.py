@@ -154,7 +154,7 @@ def what_ifs(counts: SigmaDeltaCounts, chip: Profile, host: Profile) -> dict[str
         "clocked_updates": {
             "held": sum(counts.updates_clocked[1:]),
             "one_step": sum(one.updates_clocked[1:]),
-        },  # fmt: skip
+        },
         "note": "one step per env step: the action lags the observation by L + 1 env steps "
         "(docs/sigma-delta.md, the held-schedule decision); the same messages and synaptic events",
     }
