@@ -134,7 +134,7 @@ def decide(priced: Sequence[Priced], sanafe_pj: float | None = None, primary: st
         ann = {c["baseline"]: c["ann_pj"] for c in main["checks"]}
         checks = [sanafe_check(sanafe_pj, ann[b], b, f) for b, f in BOUNDS]
         sanafe = {"holds": all(c["holds"] for c in checks), "checks": checks}
-    holds = main["holds"] and (sanafe is None or sanafe["holds"])
+    holds = bool(main["holds"]) and (sanafe is None or bool(sanafe["holds"]))
     return {
         "rule": "policy/ANN ratio's 95th percentile <= 0.5 against the memory-inclusive fp32 "
         "ANN and <= 1 against the memory-inclusive int8 ANN (SANA-FE: its energy against the "
