@@ -79,3 +79,9 @@ def test_sanafe_is_checked_against_the_baselines_whole_interval() -> None:
     out = decide(priced, sanafe_pj=60.0, proxies=(), samples=200)
     assert out["primary"]["holds"] and not out["sanafe"]["holds"] and not out["holds"]
     assert out["sanafe"]["checks"][0]["ratio_p95"] == pytest.approx(0.6)
+
+
+def test_sanafe_takes_one_energy_per_baseline() -> None:
+    priced = _priced("loihi2", 10, 30, {FP32: 100, INT8: 80})
+    out = decide(priced, sanafe_pj={FP32: 50.0, INT8: 81.0}, proxies=(), samples=200)
+    assert [c["holds"] for c in out["sanafe"]["checks"]] == [True, False]

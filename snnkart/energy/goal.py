@@ -21,7 +21,7 @@ whether removing it alone would be enough.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -122,17 +122,21 @@ def _chip(priced: Sequence[Priced], chip: str, samples: int, seed: int) -> dict[
     return out
 
 
-def decide(priced: Sequence[Priced], sanafe_pj: float | None = None, primary: str = PRIMARY,
+def decide(priced: Sequence[Priced], sanafe_pj: float | Mapping[str, float] | None = None,
+           primary: str = PRIMARY,
            proxies: Sequence[str] = PROXIES, samples: int = SAMPLES,
            seed: int = SEED) -> dict[str, Any]:  # fmt: skip
     """The goal's verdict (module docstring) from the policy priced on ``primary`` and each of
-    ``proxies`` against both baselines, and SANA-FE's energy per inference where it ran."""
+    ``proxies`` against both baselines, and SANA-FE's energy per inference where it ran (its
+    chip energy plus snnkart's host and link terms: one figure, or one per baseline where the
+    host work is priced on the baseline's profile)."""
     main = _chip(priced, primary, samples, seed)
     named = [_chip(priced, chip, samples, seed) for chip in proxies]
     sanafe = None
     if sanafe_pj is not None:
         ann = {c["baseline"]: c["ann_pj"] for c in main["checks"]}
-        checks = [sanafe_check(sanafe_pj, ann[b], b, f) for b, f in BOUNDS]
+        per = sanafe_pj if isinstance(sanafe_pj, Mapping) else dict.fromkeys(ann, sanafe_pj)
+        checks = [sanafe_check(per[b], ann[b], b, f) for b, f in BOUNDS]
         sanafe = {"holds": all(c["holds"] for c in checks), "checks": checks}
     holds = bool(main["holds"]) and (sanafe is None or bool(sanafe["holds"]))
     return {
