@@ -4,6 +4,8 @@ energy against the baseline's interval."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from snnkart.energy.goal import FP32, INT8, Priced, decide
@@ -85,3 +87,30 @@ def test_sanafe_takes_one_energy_per_baseline() -> None:
     priced = _priced("loihi2", 10, 30, {FP32: 100, INT8: 80})
     out = decide(priced, sanafe_pj={FP32: 50.0, INT8: 81.0}, proxies=(), samples=200)
     assert [c["holds"] for c in out["sanafe"]["checks"]] == [True, False]
+
+
+def test_a_sigma_delta_and_a_lif_policy_are_decided_on_the_real_profiles() -> None:
+    from snnkart.contract.deploy_record import DeployRecord
+    from snnkart.energy.counts import AnnCounts, SnnCounts
+    from snnkart.energy.goal import priced_policy
+    from snnkart.energy.profiles import load_profile
+    from snnkart.energy.sd_counts import SigmaDeltaCounts
+
+    record = Path(__file__).parent / "data/records/deploy-nir-ref-fixed.json"  # 21-64-64-5, T 8
+    tiny = {"n_in": 2, "sizes": [3], "n_out": 2, "num_message_bits": 8, "input_bits": 4,
+            "rows": 3, "messages": [1, 2, 0], "payload_bits": [4, 16, 0],
+            "synaptic_events": [3, 4, 0], "updates_clocked": [6, 9, 6],
+            "updates_active": [1, 2, 2]}  # fmt: skip
+    ann = AnnCounts((2, 3, 2))
+    baselines = [load_profile(FP32), load_profile(INT8)]
+    for policy in (
+        SigmaDeltaCounts.from_dict(tiny),
+        SnnCounts.of_deploy(DeployRecord.read(record)),
+    ):
+        priced = [priced_policy(policy, load_profile(c), b, ann)
+                  for c in ("loihi2", "loihi1") for b in baselines]  # fmt: skip
+        out = decide(priced, samples=500)
+        assert not out["holds"]  # both cost more than this 2-3-2 ANN
+        way = out["primary"]["in_the_way"]
+        assert way["part"] in {t.part for t in priced[0].snn}
+        assert way["ratio_p95_without"] < way["ratio_p95"]

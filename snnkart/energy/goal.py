@@ -25,8 +25,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from snnkart.energy.pricing import Term
+from snnkart.energy.counts import AnnCounts, SnnCounts
+from snnkart.energy.pricing import Term, ann_terms, snn_terms
 from snnkart.energy.profiles import Profile
+from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sd_pricing import sd_terms, with_graded_prices
 from snnkart.energy.uncertainty import SAMPLES, SEED, joint
 
 FP32 = "horowitz45_fp32_sram"
@@ -162,3 +165,16 @@ def _verdict(main: dict[str, Any], named: list[dict[str, Any]], sanafe: dict[str
     else:
         head += f"; SANA-FE's Loihi model: {'holds' if sanafe['holds'] else 'does not hold'}"
     return head
+
+
+def priced_policy(policy: SigmaDeltaCounts | SnnCounts, chip: Profile, baseline: Profile,
+                  ann: AnnCounts) -> Priced:  # fmt: skip
+    """A sigma-delta (:func:`sd_terms`) or LIF policy, stateful or not (:func:`snn_terms`), on
+    ``chip`` with its host work on ``baseline``, against ``ann`` on ``baseline`` (as the
+    report prices a pair when no host profile is given)."""
+    if isinstance(policy, SigmaDeltaCounts):
+        snn, profiles = sd_terms(policy, chip, baseline), with_graded_prices(chip, policy)
+    else:
+        snn, profiles = snn_terms(policy, chip, baseline), chip
+    return Priced(chip.name, baseline.name, tuple(snn), tuple(ann_terms(ann, baseline)),
+                  (profiles, baseline))  # fmt: skip
