@@ -8,9 +8,12 @@ from pathlib import Path
 
 import pytest
 
-from snnkart.energy.goal import FP32, INT8, Priced, decide
+from snnkart.contract.deploy_record import DeployRecord
+from snnkart.energy.counts import AnnCounts, SnnCounts
+from snnkart.energy.goal import FP32, INT8, Priced, decide, priced_policy
 from snnkart.energy.pricing import Term
-from snnkart.energy.profiles import Price, Profile
+from snnkart.energy.profiles import Price, Profile, load_profile
+from snnkart.energy.sd_counts import SigmaDeltaCounts
 
 
 def _profile(name: str, kind: str, **ranges: tuple[float, float, float]) -> Profile:
@@ -90,11 +93,6 @@ def test_sanafe_takes_one_energy_per_baseline() -> None:
 
 
 def test_a_sigma_delta_and_a_lif_policy_are_decided_on_the_real_profiles() -> None:
-    from snnkart.contract.deploy_record import DeployRecord
-    from snnkart.energy.counts import AnnCounts, SnnCounts
-    from snnkart.energy.goal import priced_policy
-    from snnkart.energy.profiles import load_profile
-    from snnkart.energy.sd_counts import SigmaDeltaCounts
 
     record = Path(__file__).parent / "data/records/deploy-nir-ref-fixed.json"  # 21-64-64-5, T 8
     tiny = {"n_in": 2, "sizes": [3], "n_out": 2, "num_message_bits": 8, "input_bits": 4,
@@ -114,3 +112,16 @@ def test_a_sigma_delta_and_a_lif_policy_are_decided_on_the_real_profiles() -> No
         way = out["primary"]["in_the_way"]
         assert way["part"] in {t.part for t in priced[0].snn}
         assert way["ratio_p95_without"] < way["ratio_p95"]
+
+
+def test_static_power_is_shown_beside_the_dynamic_verdict() -> None:
+    tiny = SigmaDeltaCounts.from_dict({
+        "n_in": 2, "sizes": [3], "n_out": 2, "num_message_bits": 8, "input_bits": 4, "rows": 3,
+        "messages": [1, 2, 0], "payload_bits": [4, 16, 0], "synaptic_events": [3, 4, 0],
+        "updates_clocked": [6, 9, 6], "updates_active": [1, 2, 2]})  # fmt: skip
+    priced = [priced_policy(tiny, load_profile("loihi2"), load_profile(b), AnnCounts((2, 3, 2)))
+              for b in (FP32, INT8)]  # fmt: skip
+    out = decide(priced, proxies=(), samples=100)
+    # loihi2: 0.232 W measured x 1/60 s = 3.87 mJ, not part of the dynamic verdict
+    assert out["primary"]["static_pj"] == pytest.approx(0.232e12 / 60)
+    assert out["primary"]["checks"][0]["snn_pj"]["median"] < 1e6

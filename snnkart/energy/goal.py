@@ -8,7 +8,8 @@ The rule (:func:`decide`): on a chip, a bound ``policy <= factor x baseline`` ho
 (:func:`snnkart.energy.uncertainty.joint`), is at most ``factor``; the goal holds on the chip
 when both bounds hold (:data:`BOUNDS`). It is decided on :data:`PRIMARY` (``loihi2``, the
 only profile with graded messages); :data:`PROXIES` (``loihi1``) are decided alike and named
-beside it. SANA-FE's Loihi model gives one energy, no interval: there a bound holds when that
+beside it. Dynamic energy decides; the chip's static power over the control period is shown
+beside it (``static_pj``). SANA-FE's Loihi model gives one energy, no interval: there a bound holds when that
 energy is at most ``factor`` x the baseline's 5th percentile (the baseline's whole interval on
 the losing side). The goal holds when it holds on the primary chip and, where SANA-FE ran, on
 SANA-FE's model too.
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from snnkart.energy.counts import AnnCounts, SnnCounts
-from snnkart.energy.pricing import Term, ann_terms, snn_terms
+from snnkart.energy.pricing import CONTROL_PERIOD_S, Term, ann_terms, snn_terms, static_terms, total
 from snnkart.energy.profiles import Profile
 from snnkart.energy.sd_counts import SigmaDeltaCounts
 from snnkart.energy.sd_pricing import sd_terms, with_graded_prices
@@ -109,6 +110,14 @@ def sanafe_check(snn_pj: float, ann_pj: dict[str, Any], baseline: str,
             "holds": low is not None and snn_pj <= factor * low}  # fmt: skip
 
 
+def _static(p: Priced, chip: str) -> float | None:
+    """Beside the dynamic verdict: the chip's static power over one control period (pJ), or
+    None where the profile publishes none."""
+    profile = next(x for x in p.profiles if x.name == chip)
+    terms = static_terms(profile, CONTROL_PERIOD_S, "chip")
+    return total(terms) if terms else None
+
+
 def _chip(priced: Sequence[Priced], chip: str, samples: int, seed: int) -> dict[str, Any]:
     by = {p.baseline: p for p in priced if p.chip == chip}
     missing = [b for b, _ in BOUNDS if b not in by]
@@ -118,7 +127,8 @@ def _chip(priced: Sequence[Priced], chip: str, samples: int, seed: int) -> dict[
         )
     checks = [check(by[b], f, samples, seed) for b, f in BOUNDS]
     out: dict[str, Any] = {"chip": chip, "holds": all(c["holds"] for c in checks),
-                           "checks": checks, "in_the_way": None}  # fmt: skip
+                           "checks": checks, "in_the_way": None,
+                           "static_pj": _static(by[BOUNDS[0][0]], chip)}  # fmt: skip
     if not out["holds"]:
         worst = max(checks, key=lambda c: (c["ratio"]["p95"] or float("inf")) / c["factor"])
         out["in_the_way"] = in_the_way(by[worst["baseline"]], worst["factor"], samples, seed)
