@@ -40,6 +40,13 @@ def test_a_tiny_sigma_delta_replay_is_priced_as_counted_by_hand() -> None:
     # the hidden layer's 3 messages fired on the chip: the spike-out SANA-FE does not charge
     assert per["added_spike_out_pj"] == pytest.approx(3 * SANAFE_PJ["spike_out"] / 3)
     assert per["chip_pj"] == pytest.approx(e["total"] + per["added_spike_out_pj"])
+    # the same messages given per row (layer i at row i) replay the same events
+    rows = [np.zeros((3, 3, n), bool) for n in SIZES[:-1]]
+    for i, s in enumerate(SENT):
+        rows[i][:, i, :] = s
+    by_row = run_sd(*job_of(SIZES, 3, weights, [np.zeros(4), np.zeros(2)], rows), python,
+                    timeout=120)  # fmt: skip
+    assert by_row["counts"] == run["counts"] and by_row["energy_j"] == run["energy_j"]
 
 
 def test_masks_from_counts_and_refused_shapes() -> None:

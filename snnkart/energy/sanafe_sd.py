@@ -47,7 +47,10 @@ def job_of(sizes: list[int], rows: int, weights: list[np.ndarray], biases: list[
            sent: list[np.ndarray]) -> tuple[dict[str, Any], dict[str, np.ndarray]]:  # fmt: skip
     """The worker's job: ``sizes`` = ``[n_in, *hidden, n_out]``, ``weights[i]``
     ``[sizes[i+1], sizes[i]]`` (the integer Dense weights), ``biases[i]`` for ``sizes[i+1]``,
-    ``sent[i]`` ``[E, sizes[i]]`` for the sending layers (the input Delta first)."""
+    ``sent[i]`` for the sending layers (the input Delta first): ``[E, rows, sizes[i]]`` per
+    row, or ``[E, sizes[i]]`` per env step, placed at row i (under the held schedule a layer
+    sends only there, except while the biases first propagate in a deployment's first env step:
+    the same counts, a row or two apart)."""
     if not (len(weights) == len(biases) == len(sent) == len(sizes) - 1):
         raise ValueError(
             f"{len(sizes)} groups need {len(sizes) - 1} weights, biases and sent masks; got "
@@ -55,7 +58,11 @@ def job_of(sizes: list[int], rows: int, weights: list[np.ndarray], biases: list[
         )
     arrays: dict[str, np.ndarray] = {}
     for i, (w, b, s) in enumerate(zip(weights, biases, sent, strict=True)):
-        if np.shape(w) != (sizes[i + 1], sizes[i]) or np.shape(s)[1:] != (sizes[i],):
+        if (
+            np.shape(w) != (sizes[i + 1], sizes[i])
+            or np.shape(s)[-1] != sizes[i]
+            or (np.ndim(s) == 3 and np.shape(s)[1] != rows)
+        ):
             raise ValueError(f"layer {i}: weight {np.shape(w)} or sent {np.shape(s)} does not "
                              f"fit sizes {sizes}")  # fmt: skip
         arrays[f"weight{i}"] = np.asarray(w, np.float64)

@@ -14,9 +14,10 @@ this file imports numpy and sanafe, nothing of snnkart, and is run as a script
 Input, in ``JOB_DIR``: ``job.json`` (``sizes``: the input Delta's ``n_in``, each SigmaDelta
 layer's size, the readout Sigma's ``n_out``; ``rows``: Lava steps per env step;
 ``neurons_per_core``) and ``job.npz`` (``weight{i}`` ``[sizes[i+1], sizes[i]]`` for the Dense
-from sending layer i; ``bias{i}`` ``[sizes[i]]`` for i >= 1; ``sent{i}`` ``[E, sizes[i]]``
-bool for the sending layers i = 0..L: which neurons sent in env step e, at row i under the held
-schedule). Output: ``result.json``.
+from sending layer i; ``bias{i}`` ``[sizes[i]]`` for i >= 1; ``sent{i}`` for the sending
+layers i = 0..L: ``[E, rows, sizes[i]]`` bool, which neurons sent at each row of env step e, or
+``[E, sizes[i]]``, which sent in env step e, placed at row i as the held schedule has it).
+Output: ``result.json``.
 """
 
 from __future__ import annotations
@@ -72,6 +73,14 @@ def build(sanafe: Any, job: dict[str, Any], arrays: Any) -> Any:
     return chip
 
 
+def _train(sent: np.ndarray, j: int, layer: int, rows: int) -> list[bool]:
+    """Neuron ``j``'s spikes over the rows of one env step: as recorded per row, or, from a
+    per-env-step mask, at row ``layer`` (the held schedule)."""
+    if sent.ndim == 2:
+        return [bool(x) for x in sent[:, j]]
+    return [bool(sent[j]) and r == layer for r in range(rows)]
+
+
 def run(sanafe: Any, job: dict[str, Any], arrays: Any) -> dict[str, Any]:
     """Every env step: each sending layer's messages set at its row, then ``rows`` rows run."""
     t0 = time.perf_counter()
@@ -87,7 +96,7 @@ def run(sanafe: Any, job: dict[str, Any], arrays: Any) -> dict[str, Any]:
     for e in range(sent[0].shape[0]):
         for i in senders:
             for j, neuron in enumerate(groups[f"R{i}"]):
-                train = [bool(sent[i][e, j]) and r == i for r in range(rows)]
+                train = _train(sent[i][e], j, i, rows)
                 neuron.set_attributes(model_attributes={"spikes": train})
         with contextlib.redirect_stdout(io.StringIO()):
             res = chip.sim(rows, perf_trace=True, processing_threads=1)
@@ -101,7 +110,7 @@ def run(sanafe: Any, job: dict[str, Any], arrays: Any) -> dict[str, Any]:
             counts[key] += int(res[name])
     return {
         "env_steps": int(sent[0].shape[0]), "rows": rows, "energy_j": energy, "counts": counts,
-        "messages": [int(s.sum()) for s in sent],
+        "messages": [int(s.sum()) for s in sent],  # per sending layer, all env steps
         "lif_neuron_rows": int(sum(sizes[1:]) * rows * sent[0].shape[0]),
         "latency_s": {"mean": float(np.mean(latency)) if latency else 0.0,
                       "max": float(np.max(latency)) if latency else 0.0},
