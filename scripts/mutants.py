@@ -40,6 +40,9 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
 - ``memory-row-8kb``: every side's weights are priced as reads of an 8 KB SRAM whatever their
   footprint (``snnkart.energy.pricing.memory_row``; the choice that flipped the old verdict);
   guarded by ``tests/test_energy_terms.py``.
+- ``idle-update-active``: every chip is read as updating only its active neurons, so a clocked
+  profile (Loihi) prices a sigma-delta inference's idle neurons at nothing
+  (``snnkart.energy.profiles.Profile.rule``); guarded by ``tests/test_sd_energy.py``.
 """
 
 from __future__ import annotations
@@ -66,6 +69,7 @@ MUTANTS = {
     "resume-default-length": ["tests/test_resume_length.py", "-k", "keeps"],
     "shared-price-independent": ["tests/test_uncertainty.py"],
     "memory-row-8kb": ["tests/test_energy_terms.py"],
+    "idle-update-active": ["tests/test_sd_energy.py"],
 }
 
 
@@ -152,6 +156,20 @@ def apply(name: str) -> None:
         import snnkart.energy.pricing
 
         snnkart.energy.pricing.memory_row = lambda nbytes: "sram_read_8kb"  # type: ignore[assignment]
+    elif name == "idle-update-active":
+        import dataclasses
+
+        from snnkart.energy.profiles import Profile
+
+        real_rule = Profile.rule
+
+        def rule(self, which):  # type: ignore[no-untyped-def]
+            found = real_rule(self, which)
+            return (
+                dataclasses.replace(found, value="active") if which == "neuron_updates" else found
+            )
+
+        Profile.rule = rule  # type: ignore[method-assign]
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 

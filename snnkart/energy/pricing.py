@@ -150,9 +150,11 @@ def total(terms: Iterable[Term]) -> float:
 
 
 def breakdown(terms: Iterable[Term]) -> dict[str, float]:
+    """Energy per part: every one of :data:`PARTS`, and any other part a term names (a
+    sigma-delta inference's ``messages``)."""
     out = dict.fromkeys(PARTS, 0.0)
     for t in terms:
-        out[t.part] += t.energy_pj
+        out[t.part] = out.get(t.part, 0.0) + t.energy_pj
     return out
 
 

@@ -24,6 +24,19 @@ linked from the repository's ``hardware/``; a user passes their own by path)::
     [not_published]                  # an optional price with no published figure, and why
     static_power = "no idle power published for ..."
 
+A ``neuromorphic`` profile may also state two facts of the chip that decide what a
+sigma-delta network's counts cost (:mod:`snnkart.energy.sigma_delta`), each with its
+evidence; a profile that does not is read with the costlier default (``assumed``)::
+
+    [rules.neuron_updates]
+    value = "clocked"                # clocked: every neuron is updated at every time step
+    tag = "pre-silicon"              #   (an idle one too); active: only one with input or
+    source = "Davies et al. 2018 ..."  # a message to send
+    [rules.messages]
+    value = "binary"                 # graded: a message carries an integer payload natively;
+    tag = "derived"                  #   binary: one bit (a graded message is emulated)
+    source = "..."
+
 A ``digital`` profile prices ``mac``, ``add``, ``mult`` and one 64-bit memory read per array
 size (``sram_read_8kb``, ``sram_read_32kb``, ``sram_read_1mb``, ``dram_read``; 0 in a
 compute-only profile), and says its ``weight_bits``: each side's weights are read from the
@@ -81,9 +94,14 @@ DEFAULT_DIGITAL = ("horowitz45_fp32_sram", "horowitz45_int8", "arm_degnan2015")
 """The realistic digital targets (memory priced, or an all-in per-op figure); the compute-only
 ``horowitz45_fp32``, the SNN papers' usual baseline, is built in but not a default."""
 
+RULES = {"neuron_updates": ("clocked", "active"), "messages": ("binary", "graded")}
+"""A neuromorphic profile's rules (``[rules.<name>]``) and the values each may take, the
+default (costlier) first."""
+
 _TOP_KEYS = {"schema", "name", "title", "kind", "technology", "notes", "prices", "not_published",
-             "weight_bits", "neurons_per_core", "cores_per_tile"}  # fmt: skip
+             "weight_bits", "neurons_per_core", "cores_per_tile", "rules"}  # fmt: skip
 _PRICE_KEYS = {"value", "low", "high", "unit", "tag", "source"}
+_RULE_KEYS = {"value", "tag", "source"}
 
 
 def memory_row(nbytes: float) -> str:
@@ -114,6 +132,24 @@ class Price:
 
 
 @dataclass(frozen=True)
+class Rule:
+    """A fact about how a chip computes (one of :data:`RULES`), with its evidence."""
+
+    value: str
+    tag: str
+    source: str
+
+    def as_dict(self) -> dict[str, str]:
+        return {"value": self.value, "tag": self.tag, "source": self.source}
+
+
+def default_rule(name: str) -> Rule:
+    """The rule a profile that states none is read with: the costlier value, ``assumed``."""
+    return Rule(RULES[name][0], "assumed", "not stated by the profile: snnkart assumes the "
+                f"costlier rule ({RULES[name][0]})")  # fmt: skip
+
+
+@dataclass(frozen=True)
 class Profile:
     name: str
     title: str
@@ -127,6 +163,12 @@ class Profile:
     weight_bits: int = 32  # digital: bits of one stored weight
     neurons_per_core: int = 0  # neuromorphic: the placement routing is priced on (0: none)
     cores_per_tile: int = 1
+    rules: dict[str, Rule] = field(default_factory=dict)
+    """Neuromorphic: the rules the profile states (:data:`RULES`); see :meth:`rule`."""
+
+    def rule(self, name: str) -> Rule:
+        """The profile's ``name`` rule, or :func:`default_rule` where it states none."""
+        return self.rules.get(name) or default_rule(name)
 
     def weight_bytes(self, parameters: float) -> float:
         """The footprint of ``parameters`` weights stored at this profile's ``weight_bits``
@@ -204,8 +246,35 @@ def parse_profile(text: str, source: str) -> Profile:
     return Profile(
         name=raw["name"], title=raw["title"], kind=kind,
         technology=str(raw.get("technology", "")), notes=str(raw.get("notes", "")).strip(),
-        prices=prices, path=source, not_published=not_published, **ints,
+        prices=prices, path=source, not_published=not_published,
+        rules=_rules(raw.get("rules", {}), kind, source), **ints,
     )  # fmt: skip
+
+
+def _rules(raw: Any, kind: str, source: str) -> dict[str, Rule]:
+    """The ``[rules.<name>]`` tables (neuromorphic profiles only), each checked."""
+    if raw and kind != "neuromorphic":
+        raise ProfileError(f"{source}: rules: only a neuromorphic profile states rules; remove it")
+    if not isinstance(raw, dict):
+        raise ProfileError(f"{source}: rules: a table of [rules.<name>] tables")
+    out = {}
+    for name, table in raw.items():
+        where = f"{source}: rules.{name}"
+        if name not in RULES:
+            raise ProfileError(f"{where}: unknown rule; a profile states {', '.join(RULES)}")
+        keys = set(table) if isinstance(table, dict) else set()
+        if keys != _RULE_KEYS:
+            raise ProfileError(f"{where}: give exactly {', '.join(sorted(_RULE_KEYS))}")
+        if table["value"] not in RULES[name]:
+            raise ProfileError(
+                f"{where}.value: {table['value']!r} is not one of {', '.join(RULES[name])}"
+            )
+        if table["tag"] not in TAGS:
+            raise ProfileError(f"{where}.tag: {table['tag']!r} is not one of {', '.join(TAGS)}")
+        if not isinstance(table["source"], str) or not table["source"].strip():
+            raise ProfileError(f"{where}.source: say where the rule comes from")
+        out[name] = Rule(table["value"], table["tag"], table["source"])
+    return out
 
 
 def _prices(raw: dict[str, Any], kind: str, source: str) -> tuple[dict[str, Price], dict[str, str]]:

@@ -64,16 +64,18 @@ def sanafe_python() -> str | None:
     return sys.executable if importlib.util.find_spec("sanafe") is not None else None
 
 
-def run_sanafe(job: dict[str, Any], arrays: dict[str, np.ndarray], python: str) -> dict[str, Any]:
-    """Run :mod:`snnkart.energy.sanafe_worker` on ``job`` under ``python``; its result."""
+def run_sanafe(job: dict[str, Any], arrays: dict[str, np.ndarray], python: str,
+               worker: Path = WORKER, timeout: float = TIMEOUT_S) -> dict[str, Any]:  # fmt: skip
+    """Run ``worker`` (:mod:`snnkart.energy.sanafe_worker`, or the sigma-delta replay
+    :mod:`snnkart.energy.sanafe_sd_worker`) on ``job`` under ``python``; its result."""
     with tempfile.TemporaryDirectory(prefix="snnkart-sanafe-") as tmp:
         job_dir = Path(tmp)
         (job_dir / "job.json").write_text(json.dumps(job))
         np.savez(job_dir / "job.npz", **arrays)
         try:
             proc = subprocess.run(
-                [python, "-I", str(WORKER), str(job_dir)],
-                capture_output=True, text=True, timeout=TIMEOUT_S, check=False,
+                [python, "-I", str(worker), str(job_dir)],
+                capture_output=True, text=True, timeout=timeout, check=False,
             )  # fmt: skip
         except (OSError, subprocess.TimeoutExpired) as exc:
             raise SanafeError(f"SANA-FE could not run under {python}: {exc}") from exc
