@@ -156,7 +156,9 @@ def train(
         str | None,
         typer.Option("--track", "-t", help="big_S, small_S or a file", show_default="small_S"),
     ] = None,
-    policy: Annotated[str | None, typer.Option(help="ann or snn", show_default="snn")] = None,
+    policy: Annotated[
+        str | None, typer.Option(help="ann, snn or sdnn (sigma-delta)", show_default="snn")
+    ] = None,
     steps: Annotated[
         int | None,
         typer.Option(

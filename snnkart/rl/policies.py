@@ -1,6 +1,7 @@
-"""Actor-critic policies for PPO: an MLP (ANN) and a spiking actor (SNN, snntorch).
+"""Actor-critic policies for PPO: an MLP (ANN) and a spiking actor (SNN, snntorch); the
+sigma-delta actor (SDNN) is in :mod:`snnkart.rl.sdnn`.
 
-Both share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
+All share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
 The critic is always an MLP: it never leaves the host. The spiking actor is built for
 deployment on Lava (the README's "Deployment" section): reset-to-zero LIF neurons, one
 beta and one threshold per layer, membranes reset at every env step, no recurrence.
@@ -24,6 +25,7 @@ from snnkart.contract.encoding import population_centres
 from snnkart.envs.base import KartEnv
 from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
 from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
+from snnkart.rl.sdnn_config import SDNNConfig
 
 BETA_MAX = 0.999
 """Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
@@ -322,6 +324,8 @@ def build_policy(
     obs_low: np.ndarray,
     obs_high: np.ndarray,
     init_log_std: float = -0.5,
+    sdnn_cfg: SDNNConfig | None = None,
+    clip_obs: float = 10.0,
 ) -> ActorCritic:
     if kind == "ann":
         return ANNPolicy(obs_dim, action_dim, discrete, ann, init_log_std)
@@ -329,7 +333,12 @@ def build_policy(
         return SNNPolicy(
             obs_dim, action_dim, discrete, snn_cfg, ann.hidden, obs_low, obs_high, init_log_std
         )
-    raise ValueError(f"unknown policy kind {kind!r}; choose ann or snn")
+    if kind == "sdnn":
+        from snnkart.rl.sdnn import SDNNPolicy  # it builds on this module's ActorCritic
+
+        cfg = sdnn_cfg or SDNNConfig()
+        return SDNNPolicy(obs_dim, action_dim, discrete, cfg, ann.hidden, clip_obs, init_log_std)
+    raise ValueError(f"unknown policy kind {kind!r}; choose ann, snn or sdnn")
 
 
 def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
@@ -351,4 +360,6 @@ def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
         obs_space.low.astype(np.float64),
         obs_space.high.astype(np.float64),
         cfg.ppo.init_log_std,
+        cfg.sdnn,
+        cfg.ppo.clip_obs,
     )
