@@ -132,16 +132,15 @@ class SigmaDeltaActor(nn.Module):
 def message_proxy(now: list[torch.Tensor], before: list[torch.Tensor]) -> torch.Tensor:
     """The penalty's proxy for the messages one env step sends: per hidden layer the mean
     ``|h_l(x_t) - h_l(x_{t-1})|`` over the batch and the neurons, divided by the mean
-    ``|h_l(x_t)|`` (held fixed: no gradient), summed over the layers.
+    ``|h_l(x_t)|``, summed over the layers.
 
     A neuron sends a message when its activation has changed by at least its threshold since
     its last message, and export calibrates each threshold as a multiple of its layer's mean
-    activation; the L1 change relative to that mean is the smooth, scale-free stand-in for the
-    count (a layer cannot lower it by shrinking its activations and growing the next layer's
-    weights)."""
+    activation (:mod:`snnkart.export.calibrate`); the L1 change relative to that mean is the
+    smooth, scale-free stand-in for the count. Scale-free matters: a plain L1 would fall by
+    shrinking one layer and growing the next one's weights, which changes no message."""
     terms = [
-        (a - b).abs().mean() / (a.detach().abs().mean() + 1e-6)
-        for a, b in zip(now, before, strict=True)
+        (a - b).abs().mean() / (a.abs().mean() + 1e-6) for a, b in zip(now, before, strict=True)
     ]
     return torch.stack(terms).sum().float()
 
