@@ -23,6 +23,7 @@ from snnkart.export.calibrate import AffineLayers
 from snnkart.export.sigma_delta_export import zero_block
 from snnkart.rl.config import load_config
 from snnkart.rl.policies import build_policy
+from snnkart.rl.buffer import RolloutBuffer
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.rollout import IterationStats
 from snnkart.rl.sdnn import SDNNPolicy, lava_weights
@@ -116,7 +117,11 @@ def test_lava_weights_match_lavas_clip_and_truncation() -> None:
     from snnkart.backends.sigma_delta import lava_fixed_weights
 
     rng = np.random.default_rng(2)
-    for q in (rng.integers(-300, 300, (6, 7)), rng.integers(0, 300, (6, 7)), -rng.integers(0, 300, (6, 7))):
+    for q in (
+        rng.integers(-300, 300, (6, 7)),
+        rng.integers(0, 300, (6, 7)),
+        -rng.integers(0, 300, (6, 7)),
+    ):
         got = lava_weights(torch.from_numpy(q.astype(np.float64)))
         np.testing.assert_array_equal(got.numpy().astype(np.int64), lava_fixed_weights(q))
 
@@ -172,6 +177,7 @@ def test_rollout_stores_each_steps_previous_observation(tmp_path: Path) -> None:
         done = trainer.rollout.collect(
             trainer.policy, trainer.obs_rms, buf, trainer.progress, stats, lambda: False
         )
+        _check_loss_adds_the_penalty(trainer, buf)
     finally:
         trainer.close()
     assert done and buf.previous is not None
@@ -203,3 +209,18 @@ def test_training_logs_the_penalty_and_message_rates(tmp_path: Path) -> None:
         assert 0.0 < r["sdnn/message_rate_layer1"] <= 1.0
         assert 0.0 < r["sdnn/message_rate_input"] <= 1.0
         assert r["losses/message_proxy"] > 0.0
+
+
+def _check_loss_adds_the_penalty(trainer: Trainer, buf: RolloutBuffer) -> None:
+    """The minibatch loss is PPO's plus ``message_penalty`` times the proxy of (obs, previous)."""
+    assert buf.previous is not None
+    zeros = torch.zeros_like(buf.rewards)
+    mb = buf.flat(zeros, zeros)
+    trainer.message_penalty = 0.5
+    parts, _, _ = trainer._minibatch_loss(mb)
+    p = trainer.cfg.ppo
+    ppo = parts["policy"] - trainer.ent_coef * parts["entropy"] + p.vf_coef * parts["value"]
+    proxy = trainer.policy.message_proxy(mb.obs, mb.previous)
+    assert float(proxy.detach()) > 0.0
+    torch.testing.assert_close(parts["messages"], proxy)
+    torch.testing.assert_close(parts["loss"], ppo + 0.5 * proxy)
