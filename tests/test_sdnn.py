@@ -21,9 +21,9 @@ from snnkart.backends.sigma_delta import (
 from snnkart.errors import ConfigError
 from snnkart.export.calibrate import AffineLayers
 from snnkart.export.sigma_delta_export import zero_block
+from snnkart.rl.buffer import RolloutBuffer
 from snnkart.rl.config import load_config
 from snnkart.rl.policies import build_policy
-from snnkart.rl.buffer import RolloutBuffer
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.rollout import IterationStats
 from snnkart.rl.sdnn import SDNNPolicy, lava_weights
