@@ -103,15 +103,20 @@ def check_exportable(policy: Any) -> None:
 
 
 def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
-    """Write ``out`` (.nir) and its manifest; return both paths. A ``sdnn`` run goes through
+    """Write ``out`` (.nir) and its manifest; return both paths. A spiking run goes through
+    snntorch's exporter, a ``sdnn`` run through
     :func:`snnkart.export.sigma_delta_export.export_sigma_delta` (calibrated thresholds)."""
-    import nir
-    from snntorch.export_nir import export_to_nir
-
     if run.config.policy == "sdnn":
         from snnkart.export.sigma_delta_export import export_sigma_delta
 
         return export_sigma_delta(run, out)
+    return _export_spiking(run, Path(out))
+
+
+def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
+    import nir
+    from snntorch.export_nir import export_to_nir
+
     policy = run.policy
     check_exportable(policy)
     assert isinstance(policy, SNNPolicy)
