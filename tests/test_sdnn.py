@@ -81,6 +81,9 @@ def test_config_defaults() -> None:
     assert cfg.sdnn == SDNNConfig()
     assert (cfg.sdnn.hidden, cfg.sdnn.input_bits, cfg.sdnn.weight_bits) == ((64, 64), 8, 8)
     assert cfg.sdnn.message_penalty == 0.0 and cfg.sdnn.calibration_target == 0.95
+    for env in ("grid", "gazebo", "steer"):  # the ANN's per-env settings and critic width
+        sdnn, ann = (load_config(overrides={"env": env, "policy": k}) for k in ("sdnn", "ann"))
+        assert (sdnn.ppo, sdnn.ann.hidden) == (ann.ppo, ann.ann.hidden)
 
 
 def test_torch_actor_equals_the_integer_chain_at_zero_thresholds() -> None:
