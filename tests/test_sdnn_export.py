@@ -27,9 +27,11 @@ from snnkart.contract.encoding import normalise, obs_std
 from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest
 from snnkart.export.calibrate import (
     BISECTIONS,
+    CONTINUOUS_TOLERANCE,
     F_START,
     agreement,
     record,
+    same_actions,
     search,
     thresholds,
 )
@@ -195,3 +197,12 @@ def test_a_relu_ann_converts_with_no_retraining(tmp_path: Path) -> None:
     graph = nir.read(run_dir / "policy.nir")
     for name, fc in zip(["fc1", "fc2", "readout"], linears, strict=True):
         np.testing.assert_array_equal(graph.nodes[name].weight, fc.weight.detach().numpy())
+
+
+def test_same_actions_by_argmax_or_within_the_tolerance() -> None:
+    a = np.array([[0.1, 0.9], [0.5, 0.4], [2.0, -0.3], [0.0, 0.0]])
+    b = np.array([[0.2, 0.8], [0.4, 0.5], [1.0, -0.26], [0.06, 0.0]])
+    assert same_actions(a, b, "discrete").tolist() == [True, False, True, True]
+    # continuous: clipped to [-1, 1], then every component within 0.05
+    assert same_actions(a, b, "continuous").tolist() == [False, False, True, False]
+    assert CONTINUOUS_TOLERANCE == 0.05
