@@ -57,7 +57,8 @@ def _calibration(block: SigmaDeltaBlock) -> str:
     tolerance = "" if c.get("tolerance") is None else f", tolerance {c['tolerance']}"
     line = (
         f"calibration: the action is unchanged on {c['fraction']:.1%} of {c['steps']} recorded "
-        f"steps (target {c['target']:.0%}, {c['episodes']} episodes from seed {c['seed']}"
+        f"steps (target {c['target']:.0%}, {c['episodes']} episode{'s' * (c['episodes'] != 1)} "
+        f"from seed {c['seed']}"
         f"{tolerance}, f {c['f']:.4g})"
     )
     if c.get("state_bits"):
