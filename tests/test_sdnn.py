@@ -23,10 +23,10 @@ from snnkart.export.calibrate import AffineLayers
 from snnkart.export.sigma_delta_export import zero_block
 from snnkart.rl.buffer import RolloutBuffer
 from snnkart.rl.config import load_config
-from snnkart.rl.policies import build_policy
+from snnkart.rl.policies import SDNNPolicy, build_policy
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.rollout import IterationStats
-from snnkart.rl.sdnn import SDNNPolicy, lava_weights
+from snnkart.rl.sdnn import lava_weights
 from snnkart.rl.sdnn_config import SDNNConfig
 
 CLIP = 10.0

@@ -183,8 +183,7 @@ def train(
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
     force: ForceOpt = False,
 ) -> None:
-    """Train an ANN, SNN or sigma-delta (sdnn) policy with PPO; Ctrl-C saves a checkpoint,
-    --resume continues."""
+    """Train an ann, snn or sdnn policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.app.train import run_training
     from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config

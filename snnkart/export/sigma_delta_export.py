@@ -28,7 +28,8 @@ from snnkart.errors import ExportError
 from snnkart.export.calibrate import AffineLayers, calibrate
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import versions
-from snnkart.rl.sdnn import SDNNPolicy, input_scale, layer_units
+from snnkart.rl.policies import SDNNPolicy
+from snnkart.rl.sdnn import input_scale, layer_units
 from snnkart.rl.trained import LoadedRun
 
 NIR_DT = 1e-4

@@ -33,11 +33,10 @@ from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
 from snnkart.rl.periodic_eval import PeriodicEval
-from snnkart.rl.policies import policy_for
+from snnkart.rl.policies import SDNNPolicy, policy_for
 from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
 from snnkart.rl.run_dir import RunDir, resolved_env_config
-from snnkart.rl.sdnn import SDNNPolicy
 from snnkart.rl.stopping import check, stopped
 
 __all__ = ["Progress", "RunError", "Trainer", "compute_gae", "normalize_obs", "policy_for"]

@@ -21,8 +21,7 @@ from snnkart.envs.tracks import Track
 from snnkart.rl.buffer import RolloutBuffer
 from snnkart.rl.config import PPOConfig, TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
-from snnkart.rl.policies import ActorCritic
-from snnkart.rl.sdnn import SDNNPolicy
+from snnkart.rl.policies import ActorCritic, SDNNPolicy
 
 
 class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]

@@ -35,7 +35,6 @@ import math
 import torch
 from torch import nn
 
-from snnkart.rl.policies import ActorCritic, mlp
 from snnkart.rl.sdnn_config import SDNNConfig
 
 WEIGHT_TOP = 254
@@ -149,39 +148,3 @@ def changed_share(now: list[torch.Tensor], before: list[torch.Tensor]) -> torch.
     """The measured message rate at zero thresholds: per layer the share of neurons whose
     integer changed since the previous env step (one message each under the held schedule)."""
     return torch.stack([(a != b).double().mean() for a, b in zip(now, before, strict=True)])
-
-
-class SDNNPolicy(ActorCritic):
-    """Sigma-delta actor (:class:`SigmaDeltaActor`) with an MLP critic (tanh, ``ann.hidden``)
-    on normalised observations; ``previous`` observations feed the message penalty."""
-
-    kind = "sdnn"
-
-    def __init__(
-        self,
-        obs_dim: int,
-        action_dim: int,
-        discrete: bool,
-        cfg: SDNNConfig,
-        critic_hidden: tuple[int, ...],
-        clip_obs: float,
-        init_log_std: float,
-    ) -> None:
-        super().__init__(obs_dim, action_dim, discrete, init_log_std)
-        self.cfg = cfg
-        self.sdnn = SigmaDeltaActor(obs_dim, action_dim, cfg, clip_obs)
-        self.critic = mlp([obs_dim, *critic_hidden, 1], out_std=1.0)
-
-    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
-        return self.sdnn(obs)[0], None, None
-
-    def message_proxy(self, obs: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
-        """:func:`message_proxy` of the hidden layers between ``previous`` and ``obs``."""
-        return message_proxy(self.sdnn(obs)[1], self.sdnn(previous)[1])
-
-    @torch.no_grad()
-    def message_rates(self, obs: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
-        """:func:`changed_share` for the input, then each hidden layer ``[L + 1]``."""
-        now = [self.sdnn.input_integers(obs), *self.sdnn(obs)[1]]
-        before = [self.sdnn.input_integers(previous), *self.sdnn(previous)[1]]
-        return changed_share(now, before)
