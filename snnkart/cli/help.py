@@ -25,10 +25,15 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "snnkart train --resume --out runs/grid-snn",
         "snnkart train --set ppo.learning_rate=1e-3 --set snn.num_steps=4",
         "snnkart train --policy ann --set ann.activation=relu",
+        "snnkart train --policy sdnn --set sdnn.message_penalty=0.05",
     ),
     "eval": (f"snnkart eval {_RUN} --episodes 50", f"snnkart eval {_RUN} --backend nir-ref"),
     "replay": (f"snnkart replay {_RUN} --mode all", f"snnkart replay --compare {_ANN} {_RUN}"),
-    "export": (f"snnkart export {_RUN} --nir",),
+    "export": (
+        f"snnkart export {_RUN} --nir",
+        "snnkart export runs/steer-sdnn --nir --sigma-delta-target 0.98",
+        f"snnkart export {_ANN} --nir --sigma-delta --calibration-episodes 5",
+    ),
     "deploy": (
         f"snnkart deploy {_RUN}/policy.nir --episodes 5",
         f"snnkart deploy {_RUN}/policy.nir --backend nir-ref --precision float32",

@@ -12,6 +12,7 @@ from typing import Annotated
 import typer
 
 from snnkart.cli.console import ConsoleReporter, print_headline
+from snnkart.cli.export import export
 from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
 from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
@@ -156,7 +157,9 @@ def train(
         str | None,
         typer.Option("--track", "-t", help="big_S, small_S or a file", show_default="small_S"),
     ] = None,
-    policy: Annotated[str | None, typer.Option(help="ann or snn", show_default="snn")] = None,
+    policy: Annotated[
+        str | None, typer.Option(help="ann, snn or sdnn (sigma-delta)", show_default="snn")
+    ] = None,
     steps: Annotated[
         int | None,
         typer.Option(
@@ -180,7 +183,7 @@ def train(
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
     force: ForceOpt = False,
 ) -> None:
-    """Train an ANN or SNN policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
+    """Train an ann, snn or sdnn policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.app.train import run_training
     from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config
@@ -300,29 +303,6 @@ def eval_(
           "no results were written")  # fmt: skip
 
 
-@app.command()
-def export(
-    run_dir: Annotated[Path, typer.Argument(help="a training run of an SNN policy")],
-    nir_format: Annotated[
-        bool, typer.Option("--nir", help="export to NIR (the only format)")
-    ] = False,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="NIR file to write")] = None,
-    checkpoint: Annotated[Path | None, typer.Option(help="default: the run's latest")] = None,
-) -> None:
-    """Export a spiking policy to NIR, with a manifest of what NIR does not carry."""
-    if not nir_format:
-        fail("choose an export format: --nir")
-    from snnkart.export.nir_export import export_nir
-    from snnkart.rl.trained import load_run
-
-    try:
-        run = load_run(run_dir, checkpoint)
-        nir_path, manifest = export_nir(run, out or run_dir / "policy.nir")
-    except SnnkartError as exc:
-        fail(str(exc))
-    typer.echo(f"NIR graph written to {nir_path}\nmanifest written to {manifest}")
-
-
 def _deploy_interrupted(backend: str) -> str:
     stopped = "no Lava process is left running; " if backend == "lava-sim" else ""
     return f"{stopped}no results were written"
@@ -372,6 +352,7 @@ def deploy(
     guard(lambda: run_deploy_reported(request, ConsoleReporter()), _deploy_interrupted(backend))
 
 
+app.command()(export)
 app.command()(replay)
 app.command()(report)
 app.command()(sweep)

@@ -42,11 +42,13 @@ def info(
 ) -> None:
     """Nodes, edges, shapes, neuron parameters, parameter count, and what runs on nir-ref and
     on lava-sim (and why not), with the per-step decays the chosen dt implies."""
+    from snnkart.app.nir_notes import policy_notes
     from snnkart.app.nir_tools import run_nir_info
 
     facts = guard(lambda: run_nir_info(graph, dt, discretisation))
+    notes = guard(lambda: policy_notes(graph))
     if as_json:
-        typer.echo(json.dumps(facts.as_dict(), indent=2))
+        typer.echo(json.dumps({**facts.as_dict(), "notes": notes}, indent=2))
         return
     neuron = facts.parameter_count - facts.weight_count
     typer.echo(f"{graph}: {len(facts.nodes)} nodes, {len(facts.edges)} edges, "
@@ -72,6 +74,8 @@ def info(
         typer.echo(f"lava-sim: {lava}")
         for name, why in facts.lava.items():
             typer.echo(f"  {name}: {why}")
+    for line in notes:
+        typer.echo(line)
 
 
 def _layer_line(layer: dict[str, Any]) -> str:

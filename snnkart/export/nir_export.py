@@ -66,7 +66,8 @@ def check_exportable(policy: Any) -> None:
     if not isinstance(policy, SNNPolicy):
         raise ExportError(
             f"only spiking policies can be exported to NIR for Lava; this run trained a "
-            f"{getattr(policy, 'kind', type(policy).__name__).upper()} policy"
+            f"{getattr(policy, 'kind', type(policy).__name__).upper()} policy (a ReLU ANN "
+            "converts to a sigma-delta network with --sigma-delta)"
         )
     for i, lif in enumerate(policy.snn.lifs, start=1):
         name = f"lif{i}"
@@ -102,7 +103,17 @@ def check_exportable(policy: Any) -> None:
 
 
 def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
-    """Write ``out`` (.nir) and its manifest; return both paths."""
+    """Write ``out`` (.nir) and its manifest; return both paths. A spiking run goes through
+    snntorch's exporter, a ``sdnn`` run through
+    :func:`snnkart.export.sigma_delta_export.export_sigma_delta` (calibrated thresholds)."""
+    if run.config.policy == "sdnn":
+        from snnkart.export.sigma_delta_export import export_sigma_delta
+
+        return export_sigma_delta(run, out)
+    return _export_spiking(run, Path(out))
+
+
+def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
     import nir
     from snntorch.export_nir import export_to_nir
 

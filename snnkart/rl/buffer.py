@@ -53,6 +53,7 @@ class Batch:
     returns: torch.Tensor
     values: torch.Tensor
     spikes: torch.Tensor | None  # rate encoding: the input spike trains the actor saw
+    previous: torch.Tensor | None = None  # sdnn: the previous env step's normalised observation
 
     def shuffled(self, order: np.ndarray) -> Batch:
         """The batch in ``order``: one gather per tensor and epoch, so that minibatches are
@@ -80,6 +81,9 @@ class RolloutBuffer:
     ends: torch.Tensor  # 1 where the episode ended after the step
     values: torch.Tensor
     spikes: torch.Tensor | None
+    previous: torch.Tensor | None = None
+    """sdnn: each step's previous observation of its episode, normalised as ``obs`` is (the
+    step's own at an episode's first step: no change); the message penalty's input."""
 
     @classmethod
     def allocate(
@@ -91,6 +95,7 @@ class RolloutBuffer:
         discrete: bool,
         snn_steps: int,
         rate: bool,
+        previous: bool = False,
     ) -> RolloutBuffer:
         return cls(
             obs=torch.zeros(steps, envs, obs_dim),
@@ -105,6 +110,7 @@ class RolloutBuffer:
             spikes=(
                 torch.zeros(steps, envs, snn_steps, obs_dim, dtype=torch.bool) if rate else None
             ),
+            previous=torch.zeros(steps, envs, obs_dim) if previous else None,
         )
 
     def flat(self, advantages: torch.Tensor, returns: torch.Tensor) -> Batch:
@@ -123,4 +129,5 @@ class RolloutBuffer:
                 if self.spikes is not None
                 else None
             ),
+            previous=None if self.previous is None else self.previous.reshape(n, obs_dim),
         )

@@ -27,6 +27,7 @@ from snnkart.envs.spec import make_env
 from snnkart.errors import ConfigError, did_you_mean
 from snnkart.rl.config_defaults import ENV_POLICY_DEFAULTS, POLICY_DEFAULTS
 from snnkart.rl.config_names import renamed_keys
+from snnkart.rl.sdnn_config import SDNNConfig
 
 if TYPE_CHECKING:
     from snnkart.envs.tracks import Track
@@ -203,13 +204,14 @@ class TrainConfig(BaseModel):
     env: str = "steer"
     track: str = "small_S"
     action_mode: Literal["discrete", "continuous"] = "discrete"
-    policy: Literal["ann", "snn"] = "snn"
+    policy: Literal["ann", "snn", "sdnn"] = "snn"
     total_steps: int = Field(300_000, ge=1)
     seed: int = 1
     env_config: dict[str, Any] = Field(default_factory=dict)
     ppo: PPOConfig = PPOConfig()
     ann: ANNConfig = ANNConfig()
     snn: SNNConfig = SNNConfig()
+    sdnn: SDNNConfig = SDNNConfig()
     run: RunConfig = RunConfig()
     stop: StopConfig = StopConfig()
     eval: EvalConfig = EvalConfig()

@@ -14,6 +14,9 @@ POLICY_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     # it also learned more reliably than 128-128 (gazebo seed 1: first finish 100k instead of
     # 217k). The SNN's critic keeps ann.hidden = 128-128.
     "ann": {"ann": {"hidden": (64, 64)}},
+    # The sigma-delta actor is the ANN's ReLU MLP with the chip's integers faked in: the ANN's
+    # critic width (not measured for sdnn separately).
+    "sdnn": {"ann": {"hidden": (64, 64)}},
 }
 
 
@@ -48,3 +51,12 @@ ENV_POLICY_DEFAULTS: dict[tuple[str, str], dict[str, dict[str, Any]]] = {
     ("grid", "ann"): {"ppo": {"ent_coef": 0.005, "start_spread": 0.5}},
     ("grid", "snn"): {"ppo": {"ent_coef": 0.0, "start_spread": 0.5}},
 }
+# The sdnn actor is the ANN's network quantised: it starts from the ANN's per-env settings
+# (not tuned for sdnn separately yet).
+ENV_POLICY_DEFAULTS.update(
+    {
+        (env, "sdnn"): values
+        for (env, kind), values in list(ENV_POLICY_DEFAULTS.items())
+        if kind == "ann"
+    }
+)

@@ -1,6 +1,7 @@
-"""Actor-critic policies for PPO: an MLP (ANN) and a spiking actor (SNN, snntorch).
+"""Actor-critic policies for PPO: an MLP (ANN) and a spiking actor (SNN, snntorch); the
+sigma-delta actor (SDNN) is :mod:`snnkart.rl.sdnn`'s, its policy here.
 
-Both share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
+All share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
 The critic is always an MLP: it never leaves the host. The spiking actor is built for
 deployment on Lava (the README's "Deployment" section): reset-to-zero LIF neurons, one
 beta and one threshold per layer, membranes reset at every env step, no recurrence.
@@ -24,6 +25,8 @@ from snnkart.contract.encoding import population_centres
 from snnkart.envs.base import KartEnv
 from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
 from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
+from snnkart.rl.sdnn import SigmaDeltaActor, changed_share, message_proxy
+from snnkart.rl.sdnn_config import SDNNConfig
 
 BETA_MAX = 0.999
 """Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
@@ -312,6 +315,42 @@ class SNNPolicy(ActorCritic):
                     lif.alpha.clamp_(0.0, BETA_MAX)
 
 
+class SDNNPolicy(ActorCritic):
+    """Sigma-delta actor (:class:`SigmaDeltaActor`) with an MLP critic (tanh, ``ann.hidden``)
+    on normalised observations; ``previous`` observations feed the message penalty."""
+
+    kind = "sdnn"
+
+    def __init__(
+        self,
+        obs_dim: int,
+        action_dim: int,
+        discrete: bool,
+        cfg: SDNNConfig,
+        critic_hidden: tuple[int, ...],
+        clip_obs: float,
+        init_log_std: float,
+    ) -> None:
+        super().__init__(obs_dim, action_dim, discrete, init_log_std)
+        self.cfg = cfg
+        self.sdnn = SigmaDeltaActor(obs_dim, action_dim, cfg, clip_obs)
+        self.critic = mlp([obs_dim, *critic_hidden, 1], out_std=1.0)
+
+    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
+        return self.sdnn(obs)[0], None, None
+
+    def message_proxy(self, obs: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
+        """:func:`message_proxy` of the hidden layers between ``previous`` and ``obs``."""
+        return message_proxy(self.sdnn(obs)[1], self.sdnn(previous)[1])
+
+    @torch.no_grad()
+    def message_rates(self, obs: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
+        """:func:`changed_share` for the input, then each hidden layer ``[L + 1]``."""
+        now = [self.sdnn.input_integers(obs), *self.sdnn(obs)[1]]
+        before = [self.sdnn.input_integers(previous), *self.sdnn(previous)[1]]
+        return changed_share(now, before)
+
+
 def build_policy(
     kind: str,
     obs_dim: int,
@@ -322,6 +361,8 @@ def build_policy(
     obs_low: np.ndarray,
     obs_high: np.ndarray,
     init_log_std: float = -0.5,
+    sdnn_cfg: SDNNConfig | None = None,
+    clip_obs: float = 10.0,
 ) -> ActorCritic:
     if kind == "ann":
         return ANNPolicy(obs_dim, action_dim, discrete, ann, init_log_std)
@@ -329,7 +370,10 @@ def build_policy(
         return SNNPolicy(
             obs_dim, action_dim, discrete, snn_cfg, ann.hidden, obs_low, obs_high, init_log_std
         )
-    raise ValueError(f"unknown policy kind {kind!r}; choose ann or snn")
+    if kind == "sdnn":
+        cfg = sdnn_cfg or SDNNConfig()
+        return SDNNPolicy(obs_dim, action_dim, discrete, cfg, ann.hidden, clip_obs, init_log_std)
+    raise ValueError(f"unknown policy kind {kind!r}; choose ann, snn or sdnn")
 
 
 def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
@@ -351,4 +395,6 @@ def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
         obs_space.low.astype(np.float64),
         obs_space.high.astype(np.float64),
         cfg.ppo.init_log_std,
+        cfg.sdnn,
+        cfg.ppo.clip_obs,
     )

@@ -33,7 +33,7 @@ from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
 from snnkart.rl.periodic_eval import PeriodicEval
-from snnkart.rl.policies import policy_for
+from snnkart.rl.policies import SDNNPolicy, policy_for
 from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
 from snnkart.rl.run_dir import RunDir, resolved_env_config
@@ -104,6 +104,7 @@ class Trainer:
         )
         self.ent_coef = p.ent_coef  # annealed with the learning rate when ppo.anneal_ent
         self.rate_reg = cfg.snn.rate_reg if cfg.policy == "snn" else 0.0  # snn.rate_reg_warmup
+        self.message_penalty = cfg.sdnn.message_penalty if cfg.policy == "sdnn" else 0.0
         self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
         self.progress = Progress()
         self.rng = np.random.default_rng(cfg.seed)
@@ -223,6 +224,7 @@ class Trainer:
             p.rollout_steps, p.num_envs, self.spec["obs_dim"],
             () if discrete else (self.policy.action_dim,), discrete, snn.num_steps,
             rate=self.cfg.policy == "snn" and snn.encoding == "rate",
+            previous=self.cfg.policy == "sdnn",
         )  # fmt: skip
 
     def _anneal(self) -> None:
@@ -231,10 +233,13 @@ class Trainer:
         if p.anneal_lr:
             self.optimizer.param_groups[0]["lr"] = frac * p.learning_rate
         self.ent_coef = frac * p.ent_coef if p.anneal_ent else p.ent_coef
-        snn = self.cfg.snn
+        snn, sdnn = self.cfg.snn, self.cfg.sdnn
         self.rate_reg = snn.rate_reg if self.cfg.policy == "snn" else 0.0
         if snn.rate_reg_warmup > 0.0:
             self.rate_reg *= min(1.0, (1.0 - frac) / snn.rate_reg_warmup)
+        self.message_penalty = sdnn.message_penalty if self.cfg.policy == "sdnn" else 0.0
+        if sdnn.message_penalty_warmup > 0.0:
+            self.message_penalty *= min(1.0, (1.0 - frac) / sdnn.message_penalty_warmup)
 
     def _iteration(self, buf: RolloutBuffer, save_latest: bool = False) -> dict[str, Any] | None:
         """One iteration: rollout, GAE, update, record, checkpoint; None if an interrupt cut
@@ -314,6 +319,7 @@ class Trainer:
             "losses/clipfrac": float(np.mean(clipfracs)),
             "losses/explained_variance": explained_var,
             "losses/first_minibatch_max_ratio_deviation": first_ratio_dev,
+            **({"losses/message_proxy": losses["messages"].item()} if "messages" in losses else {}),
         }
 
     def _minibatch_loss(
@@ -330,7 +336,11 @@ class Trainer:
         loss = pg_loss - self.ent_coef * entropy + p.vf_coef * v_loss
         if self.rate_reg > 0.0 and out.rates is not None:
             loss = loss + self.rate_reg * out.rates.sum()
-        parts = {"loss": loss, "policy": pg_loss, "value": v_loss, "entropy": entropy}
+        parts = {"policy": pg_loss, "value": v_loss, "entropy": entropy}
+        if mb.previous is not None and isinstance(self.policy, SDNNPolicy):
+            parts["messages"] = self.policy.message_proxy(mb.obs, mb.previous)
+            loss = loss + self.message_penalty * parts["messages"]
+        parts["loss"] = loss
         return parts, ratio, logratio
 
     def _record(
@@ -364,6 +374,12 @@ class Trainer:
             rates = np.mean(stats.rates, axis=0)
             for k, r in enumerate(rates):
                 record[f"snn/firing_rate_layer{k + 1}"] = float(r)
+        if stats.messages:
+            shares = np.mean(stats.messages, axis=0)
+            record["sdnn/message_penalty"] = self.message_penalty
+            record["sdnn/message_rate_input"] = float(shares[0])
+            for k, r in enumerate(shares[1:]):
+                record[f"sdnn/message_rate_layer{k + 1}"] = float(r)
         return record
 
     def close(self) -> None:

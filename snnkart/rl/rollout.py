@@ -21,7 +21,7 @@ from snnkart.envs.tracks import Track
 from snnkart.rl.buffer import RolloutBuffer
 from snnkart.rl.config import PPOConfig, TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
-from snnkart.rl.policies import ActorCritic
+from snnkart.rl.policies import ActorCritic, SDNNPolicy
 
 
 class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
@@ -81,6 +81,8 @@ class IterationStats:
     crashes: int = 0
     lap_times: list[float] = field(default_factory=list)
     rates: list[np.ndarray] = field(default_factory=list)
+    messages: list[np.ndarray] = field(default_factory=list)
+    """sdnn: per step the share of neurons whose integer changed (input, hidden layers)."""
 
 
 class Rollout:
@@ -109,6 +111,7 @@ class Rollout:
 
     def reset(self, seed: int) -> None:
         self.next_raw, _ = self.envs.reset(seed=seed)
+        self.previous_raw = np.array(self.next_raw, copy=True)  # no change at a first step
         self.ep_return = np.zeros(self.ppo.num_envs)
         self.ep_length = np.zeros(self.ppo.num_envs, dtype=np.int64)
         self.fresh[:] = True
@@ -147,7 +150,13 @@ class Rollout:
                 buf.spikes[step] = out.input_spikes.bool()
             if out.rates is not None:
                 stats.rates.append(out.rates.numpy())
+            if buf.previous is not None and isinstance(policy, SDNNPolicy):
+                buf.previous[step] = torch.from_numpy(normalize_obs(obs_rms, p, self.previous_raw))
+                stats.messages.append(policy.message_rates(obs_t, buf.previous[step]).numpy())
+            current = self.next_raw
             self._step(step, out.action.numpy(), policy, obs_rms, buf, progress, stats)
+            done = buf.ends[step].numpy()[:, None] > 0
+            self.previous_raw = np.where(done, self.next_raw, current)
             if interrupted():
                 return False
         return True
