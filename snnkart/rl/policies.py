@@ -3,7 +3,8 @@
 Both share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
 The critic is always an MLP: it never leaves the host. The spiking actor is built for
 deployment on Lava (the README's "Deployment" section): reset-to-zero LIF neurons, one
-beta and one threshold per layer, membranes reset at every env step, no recurrence.
+beta and one threshold per layer, membranes reset at every env step, no recurrence; or, with
+``snn.stateful``, membranes that carry across env steps (:class:`StatefulSNNPolicy`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from snnkart.contract.encoding import population_centres
 from snnkart.envs.base import KartEnv
 from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
 from snnkart.rl.spiking import SpikingActor, layer_init
+from snnkart.rl.stateful import state_size, stream_sequence, stream_step
 
 BETA_MAX = 0.999
 """Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
@@ -48,6 +50,7 @@ class PolicyOutput:
     value: torch.Tensor
     input_spikes: torch.Tensor | None  # rate encoding: the sampled input trains [B, T, n_in]
     rates: torch.Tensor | None  # SNN: mean firing rate per layer [n_layers]
+    state: torch.Tensor | None = None  # stateful SNN: the actor's state after this step
 
 
 class ActorCritic(nn.Module):
@@ -89,6 +92,19 @@ class ActorCritic(nn.Module):
     ) -> PolicyOutput:
         """``obs`` is normalised (critic, ANN actor); ``raw_obs`` is the env's observation."""
         out, spikes, rates = self.actor_output(obs, raw_obs, input_spikes)
+        return self.output(out, obs, action, spikes, rates)
+
+    def output(
+        self,
+        out: torch.Tensor,
+        obs: torch.Tensor,
+        action: torch.Tensor | None,
+        spikes: torch.Tensor | None,
+        rates: torch.Tensor | None,
+        state: torch.Tensor | None = None,
+    ) -> PolicyOutput:
+        """The action distribution of the actor's ``out``, a sample of it unless ``action`` is
+        given, its log-probability, entropy and the critic's value of ``obs``."""
         dist = self.distribution(out)
         if action is None:
             action = dist.sample()
@@ -96,7 +112,7 @@ class ActorCritic(nn.Module):
         entropy = dist.entropy()
         if not self.discrete:
             log_prob, entropy = log_prob.sum(-1), entropy.sum(-1)
-        return PolicyOutput(action, log_prob, entropy, self.value(obs), spikes, rates)
+        return PolicyOutput(action, log_prob, entropy, self.value(obs), spikes, rates, state)
 
     @torch.no_grad()
     def act_deterministic(
@@ -204,6 +220,60 @@ class SNNPolicy(ActorCritic):
                     lif.alpha.clamp_(0.0, BETA_MAX)
 
 
+class StatefulSNNPolicy(SNNPolicy):
+    """A spiking actor whose membranes carry across env steps (``snn.stateful``): each env step
+    is the Lava row stream of :mod:`snnkart.rl.stateful` from the state the last one left.
+
+    ``forward`` takes the state ``[B, D]`` before this step (``state``), or with ``starts``
+    ``[S, E]`` whole env sequences (``obs`` time-major ``[S * E, ...]``, ``state`` ``[E, D]``
+    before step 0, zeroed where an episode starts), and returns the new state in
+    :attr:`PolicyOutput.state`."""
+
+    stateful = True
+
+    def state_size(self) -> int:
+        return state_size(tuple(self.cfg.hidden))
+
+    def initial_state(self, batch: int) -> torch.Tensor:
+        """The state at an episode's start: zero membranes, no spikes in flight."""
+        return torch.zeros(batch, self.state_size())
+
+    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
+        raise TypeError("a stateful policy acts from a state: call it with state=")
+
+    def forward(  # type: ignore[override]
+        self,
+        obs: torch.Tensor,
+        raw_obs: torch.Tensor,
+        action: torch.Tensor | None = None,
+        input_spikes: torch.Tensor | None = None,
+        state: torch.Tensor | None = None,
+        starts: torch.Tensor | None = None,
+    ) -> PolicyOutput:
+        if state is None:
+            raise TypeError("a stateful policy acts from a state: call it with state=")
+        x = self.actor_input(obs, raw_obs)
+        if starts is None:
+            out, rates, new = stream_step(self.snn, x, state)
+        else:
+            out, rates, new = stream_sequence(self.snn, x, state, starts)
+        return self.output(out, obs, action, None, rates, new)
+
+    @torch.no_grad()
+    def act_from(
+        self, obs: torch.Tensor, raw_obs: torch.Tensor, state: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The deterministic action (argmax or mean) from ``state``, and the new state."""
+        was = self.training
+        self.eval()
+        try:
+            out, rates, new = stream_step(self.snn, self.actor_input(obs, raw_obs), state)
+        finally:
+            self.train(was)
+        self.last_rates = rates.detach()
+        return (out.argmax(-1) if self.discrete else out), new
+
+
 def build_policy(
     kind: str,
     obs_dim: int,
@@ -218,7 +288,7 @@ def build_policy(
     if kind == "ann":
         return ANNPolicy(obs_dim, action_dim, discrete, ann, init_log_std)
     if kind == "snn":
-        return SNNPolicy(
+        return (StatefulSNNPolicy if snn_cfg.stateful else SNNPolicy)(
             obs_dim, action_dim, discrete, snn_cfg, ann.hidden, obs_low, obs_high, init_log_std
         )
     raise ValueError(f"unknown policy kind {kind!r}; choose ann or snn")
