@@ -258,7 +258,8 @@ class Trainer:
                 buf.rewards, buf.values, buf.ends, last_value, p.gamma, p.gae_lambda
             )
         update_start = time.perf_counter()
-        losses = self.update(buf.flat(advantages, returns), self.rollout.sequences(buf))
+        flat, seq = buf.flat(advantages, returns), self.rollout.sequences(buf)
+        losses = self.update(flat) if seq is None else self.update(flat, seq)
         update_time = time.perf_counter() - update_start
         record = self._record(stats, losses, rollout_time, update_time)
         stop = check(self.cfg, self.progress, self.policy, self.obs_rms, self.track, _interrupted)
