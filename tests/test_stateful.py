@@ -22,7 +22,7 @@ from snnkart.app.nir_tools import run_nir_info
 from snnkart.backends.reference import Float32Chain, Float32Stream, NIRReference
 from snnkart.backends.registry import open_backend
 from snnkart.contract.manifest import Manifest, manifest_path
-from snnkart.eval.closed_loop import make_policy_env
+from snnkart.eval.closed_loop import DeployRequest, make_policy_env, run_deploy
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.buffer import RolloutBuffer, minibatches
 from snnkart.rl.config import ConfigError, load_config
@@ -215,3 +215,19 @@ def test_lava_runs_the_stream_bit_for_bit_over_episodes(
         env.close()
     assert episodes >= 2
     assert reference.counts.spikes.min() > 0
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(240)
+def test_a_lava_deploy_resets_the_backend_and_its_references_together(
+    exported: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """``snnkart deploy``'s loop: several episodes, every env step checked against the fixed
+    reference, which must be zeroed at each episode's start along with Lava."""
+    _, nir_path = exported
+    record = run_deploy(
+        DeployRequest(nir_path, "lava-sim", "fixed", episodes=4, seed=3, out=tmp_path / "d")
+    )
+    assert record.parity.env_steps > 100
+    assert record.parity.same_arithmetic_mismatched_windows == 0
+    assert record.parity.float32_identical_action_fraction > 0.9
