@@ -29,6 +29,8 @@ from snnkart.rl.config import ConfigError, load_config
 from snnkart.rl.policies import StatefulSNNPolicy
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.rollout import IterationStats
+from snnkart.rl.stateful import stream_sequence
+from snnkart.rl.stateful_lif import fused_stream_sequence
 from snnkart.rl.trained import TorchPredictor, load_run
 
 STATEFUL = ["snn.stateful=true", "snn.num_steps=2", "snn.hidden=[32, 24]"]
@@ -117,13 +119,13 @@ def test_an_episode_of_the_torch_policy_equals_the_float32_reference(
     assert reference.counts.spikes.min() > 0
 
 
-def _rollout_twice(tmp_path: Path) -> tuple[Trainer, RolloutBuffer]:
+def _rollout_twice(tmp_path: Path, *extra: str) -> tuple[Trainer, RolloutBuffer]:
     """A stateful trainer after two rollouts (the second starts from the state the first
     left), episodes of at most 20 steps so that several start inside each rollout."""
     cfg = load_config(
         overrides={"env": "grid", "policy": "snn", "total_steps": 512, "track": "small_S"},
         sets=[*TINY, *STATEFUL, "ppo.num_envs=4", "ppo.rollout_steps=64",
-              "env_config.max_episode_steps=20"],
+              "env_config.max_episode_steps=20", *extra],
     )  # fmt: skip
     trainer = Trainer(cfg, tmp_path / "run")
     buf = trainer._allocate()
@@ -153,6 +155,36 @@ def test_the_recurrent_update_recomputes_the_rollouts_log_probs(tmp_path: Path) 
                 np.testing.assert_allclose(out.log_prob, mb.logprobs, rtol=0, atol=1e-6)
                 seen += mb.obs.shape[0]
         assert seen == buf.obs.shape[0] * buf.obs.shape[1]
+    finally:
+        trainer.close()
+
+
+def test_the_fused_sequence_equals_the_stepped_snntorch_modules(tmp_path: Path) -> None:
+    """The update's layer-by-layer fused kernel: the same readouts as snntorch's modules
+    stepped row by row, and the same gradients (weights, learnable beta and threshold) up to
+    float32 rounding, across episode starts and from a non-zero stored state."""
+    trainer, buf = _rollout_twice(tmp_path, "snn.learn_beta=true", "snn.learn_threshold=true")
+    try:
+        policy = trainer.policy
+        assert isinstance(policy, StatefulSNNPolicy)
+        seq = trainer.rollout.sequences(buf)
+        assert seq is not None
+        x = policy.actor_input(
+            buf.obs.reshape(-1, buf.obs.shape[-1]), buf.raw.reshape(-1, buf.raw.shape[-1])
+        )
+        results = []
+        for run in (fused_stream_sequence, stream_sequence):
+            policy.zero_grad()
+            out, rates, _ = run(policy.snn, x, seq.state0, seq.starts)
+            (out.square().sum() + rates.sum()).backward()
+            grads = {k: p.grad.clone() for k, p in policy.snn.named_parameters()}
+            results.append((out.detach(), grads))
+        (fused, fused_grads), (stepped, stepped_grads) = results
+        torch.testing.assert_close(fused, stepped, rtol=0, atol=0)
+        assert fused_grads.keys() == stepped_grads.keys() >= {"lif1.beta", "lif2.threshold"}
+        for name, grad in stepped_grads.items():
+            assert grad.abs().max() > 0, name
+            torch.testing.assert_close(fused_grads[name], grad, rtol=1e-4, atol=1e-5, msg=name)
     finally:
         trainer.close()
 

@@ -23,6 +23,7 @@ from snnkart.envs.base import KartEnv
 from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
 from snnkart.rl.spiking import SpikingActor, layer_init
 from snnkart.rl.stateful import state_size, stream_sequence, stream_step
+from snnkart.rl.stateful_lif import fused_stream_sequence
 
 BETA_MAX = 0.999
 """Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
@@ -256,7 +257,8 @@ class StatefulSNNPolicy(SNNPolicy):
         if starts is None:
             out, rates, new = stream_step(self.snn, x, state)
         else:
-            out, rates, new = stream_sequence(self.snn, x, state, starts)
+            run = fused_stream_sequence if self.cfg.fused else stream_sequence
+            out, rates, new = run(self.snn, x, state, starts)
         return self.output(out, obs, action, None, rates, new)
 
     @torch.no_grad()

@@ -29,7 +29,8 @@ def state_size(sizes: tuple[int, ...]) -> int:
     return sum(sizes) + sum(sizes[:-1])
 
 
-def _split(state: torch.Tensor, sizes: tuple[int, ...]) -> tuple[list[Any], list[Any]]:
+def split_state(state: torch.Tensor, sizes: tuple[int, ...]) -> tuple[list[Any], list[Any]]:
+    """The membranes (per layer) and the last-row spikes (per layer but the last) in ``state``."""
     parts = list(torch.split(state, [*sizes, *sizes[:-1]], dim=-1))
     return parts[: len(sizes)], parts[len(sizes) :]
 
@@ -43,7 +44,7 @@ def stream_step(
     sizes = tuple(fc.out_features for fc in actor.fcs)
     K, T = len(sizes), actor.T
     L = K - 1
-    mems, prev = _split(state, sizes)
+    mems, prev = split_state(state, sizes)
     current = actor.fcs[0](x)
     drain = torch.zeros_like(current)
     read: list[torch.Tensor] = []
