@@ -121,11 +121,13 @@ def test_an_episode_of_the_torch_policy_equals_the_float32_reference(
 
 def _rollout_twice(tmp_path: Path, *extra: str) -> tuple[Trainer, RolloutBuffer]:
     """A stateful trainer after two rollouts (the second starts from the state the first
-    left), episodes of at most 20 steps so that several start inside each rollout."""
+    left), episodes of at most 20 steps so that several start inside each rollout; three
+    layers, so that spikes are in flight between steps (a first layer never spikes on its drain
+    rows: its input is 0 there)."""
     cfg = load_config(
         overrides={"env": "grid", "policy": "snn", "total_steps": 512, "track": "small_S"},
         sets=[*TINY, *STATEFUL, "ppo.num_envs=4", "ppo.rollout_steps=64",
-              "env_config.max_episode_steps=20", *extra],
+              "env_config.max_episode_steps=20", "snn.hidden=[24, 20, 16]", *extra],
     )  # fmt: skip
     trainer = Trainer(cfg, tmp_path / "run")
     buf = trainer._allocate()
