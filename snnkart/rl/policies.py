@@ -254,6 +254,7 @@ class StatefulSNNPolicy(SNNPolicy):
         if state is None:
             raise TypeError("a stateful policy acts from a state: call it with state=")
         x = self.actor_input(obs, raw_obs)
+        new: torch.Tensor | None
         if starts is None:
             out, rates, new = stream_step(self.snn, x, state)
         else:
