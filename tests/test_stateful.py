@@ -17,10 +17,12 @@ import numpy as np
 import pytest
 import torch
 from tiny_runs import TINY, train_tiny
+from typer.testing import CliRunner
 
 from snnkart.app.nir_tools import run_nir_info
 from snnkart.backends.reference import Float32Chain, Float32Stream, NIRReference
 from snnkart.backends.registry import open_backend
+from snnkart.cli import app
 from snnkart.contract.manifest import Manifest, manifest_path
 from snnkart.eval.closed_loop import DeployRequest, make_policy_env, run_deploy
 from snnkart.export.nir_export import export_nir
@@ -212,6 +214,9 @@ def test_the_export_says_the_state_persists(exported: tuple[Path, Path]) -> None
     graph = nir.read(nir_path)
     assert all(isinstance(graph.nodes[s.node], nir.LIF) for s in manifest.layers)
     assert "carry across env steps" in (run_nir_info(nir_path, None, None).state or "")
+    shown = CliRunner().invoke(app, ["nir", "info", str(nir_path)], terminal_width=400)
+    assert shown.exit_code == 0
+    assert "state: membranes carry across env steps" in shown.output
     committed = NIRReference(COMMITTED, "float32")  # a v2 manifest: reset every env step
     assert not committed.manifest.state_persists
     assert isinstance(committed.engine, Float32Chain)
