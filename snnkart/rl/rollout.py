@@ -132,7 +132,6 @@ class Rollout:
         self.reset_positions[:] = 0.0
         self.first_positions[:] = [kart.position for kart in self.karts]
         self.episode_start[:], self.fresh[:] = self.fresh, False
-        stateful = isinstance(policy, StatefulSNNPolicy)
         if isinstance(policy, StatefulSNNPolicy) and self.actor_state is None:
             self.actor_state = policy.initial_state(E)
         self.start_state = self.actor_state
@@ -143,7 +142,7 @@ class Rollout:
                 obs_rms.update(self.next_raw)
             obs_t = torch.from_numpy(normalize_obs(obs_rms, p, self.next_raw))
             raw_t = torch.from_numpy(np.asarray(self.next_raw, dtype=np.float32))
-            if stateful:
+            if self.actor_state is not None:  # a stateful actor acts from its state
                 extra = {"state": self.actor_state}
             with torch.no_grad():
                 out = policy(obs_t, raw_t, **extra)
