@@ -200,10 +200,10 @@ def _apply_ppo(name: str) -> None:
         Trainer = snnkart.rl.ppo.Trainer
         real_update = Trainer.update
 
-        def update(self, b):  # type: ignore[no-untyped-def]
+        def update(self, b, seq=None):  # type: ignore[no-untyped-def]
             adv = b.advantages
             adv = (adv - adv.mean()) / (adv.std() + 1e-8) if self.cfg.ppo.norm_adv else adv
-            return real_update(self, dataclasses.replace(b, advantages=torch.as_tensor(adv)))
+            return real_update(self, dataclasses.replace(b, advantages=torch.as_tensor(adv)), seq)
 
         Trainer.update = update  # type: ignore[method-assign]
 

@@ -50,10 +50,23 @@ def resolve_discretisation(path: Path, given: str | None) -> str:
     return Manifest.read(mpath).discretisation if mpath.is_file() else "euler"
 
 
+STATE_PERSISTS = (
+    "membranes carry across env steps (manifest state_persists): each env step runs T + L Lava "
+    "steps with no reset and the state is zeroed only at an episode's start; the NIR file alone "
+    "(plain LIF nodes) does not say so, and a reader who resets the LIF state per input runs "
+    "another policy"
+)
+"""What ``snnkart nir info`` says about a stateful LIF export (docs/stateful.md)."""
+
+
 def run_nir_info(path: Path, dt: float | None, discretisation: str | None) -> GraphInfo:
     graph = read_graph(path)
     step, source = resolve_dt(path, dt)
-    return describe_graph(graph, step, source, resolve_discretisation(path, discretisation))
+    info = describe_graph(graph, step, source, resolve_discretisation(path, discretisation))
+    mpath = manifest_path(path)
+    if mpath.is_file() and Manifest.read(mpath).state_persists:
+        info.state = STATE_PERSISTS
+    return info
 
 
 def load_open_chain(path: Path, dt: float | None, discretisation: str | None) -> ChainNetwork:

@@ -50,6 +50,7 @@ class GraphInfo:
     reference: str  # "supported" or why nir-ref cannot run it
     lava: dict[str, str] = field(default_factory=dict)  # node -> why lava-sim cannot run it
     layers: list[dict[str, Any]] = field(default_factory=list)  # per spiking layer, at dt
+    state: str | None = None  # the manifest's state semantics, when the graph alone misleads
 
     @property
     def lava_supported(self) -> bool:

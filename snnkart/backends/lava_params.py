@@ -35,12 +35,15 @@ class LavaLayer:
 
 @dataclass(frozen=True)
 class LavaSpec:
-    """What the Lava worker builds: the layers, their sizes, T and the arithmetic."""
+    """What the Lava worker builds: the layers, their sizes, T and the arithmetic, and whether
+    the state persists across windows (plain ``LIF``, a stateful policy) or is reset in each
+    (``LIFReset``)."""
 
     arithmetic: Arithmetic  # "float64" (floating-point models) or "fixed" (bit-accurate)
     num_steps: int
     sizes: tuple[int, ...]
     layers: tuple[LavaLayer, ...]
+    persist: bool = False
 
 
 def lava_layers(
@@ -76,10 +79,14 @@ def lava_layers(
 
 
 def lava_spec(
-    chain: ChainNetwork, num_steps: int, arithmetic: Arithmetic, fixed: FixedPointNetwork | None
+    chain: ChainNetwork,
+    num_steps: int,
+    arithmetic: Arithmetic,
+    fixed: FixedPointNetwork | None,
+    persist: bool = False,
 ) -> LavaSpec:
     return LavaSpec(
-        arithmetic, num_steps, tuple(chain.sizes), lava_layers(chain, arithmetic, fixed)
+        arithmetic, num_steps, tuple(chain.sizes), lava_layers(chain, arithmetic, fixed), persist
     )
 
 

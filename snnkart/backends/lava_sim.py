@@ -79,9 +79,12 @@ class LavaWorker:
 
     def __init__(self, spec: LavaSpec | SigmaDeltaLavaSpec) -> None:
         self.arithmetic: Arithmetic = spec.arithmetic
+        self.persist = False  # a stateful LIF policy's network: rebuilt at an episode's start
         if isinstance(spec, LavaSpec):
             self.steps = spec.num_steps
             self.depth = len(spec.sizes) - 1  # one step per Dense
+            self.persist = spec.persist
+        self.dirty = False  # a persisting network has run a window since it was built
         self.stderr = tempfile.TemporaryFile()
         self._tail = ""  # the last lines of stderr, kept when the file is closed
         env = {**os.environ, "PYTHONUNBUFFERED": "1", "SNNKART_FAULT_PGID": str(os.getpgrp())}
@@ -201,6 +204,7 @@ class LavaWorker:
 
     def raster(self, values: np.ndarray) -> np.ndarray:
         """One env step's input in, the window's raster out (as the worker's network gives it)."""
+        self.dirty = True
         kind, raster = self._exchange(("window", values), "window", WINDOW_TIMEOUT)
         if kind != "raster":
             self.kill()
@@ -211,7 +215,15 @@ class LavaWorker:
         return np.asarray(self.raster(current), dtype=bool)
 
     def reset(self) -> None:
-        """Nothing to forget at an episode's start: every layer is reset inside each window."""
+        """An episode's start: nothing to forget when every layer is reset inside each window;
+        a persisting network (a stateful policy) is built again from zero state, unless it has
+        not run a window since it was built."""
+        if self.persist and self.dirty:
+            kind, _ = self._exchange(("reset",), "reset", STARTUP_TIMEOUT)
+            if kind != "ready":
+                self.kill()
+                raise LavaBackendError(f"Lava worker: unexpected reply {kind!r}")
+            self.dirty = False
 
     def close(self) -> None:
         """Ask the worker to stop its Lava runtime; kill its session if it does not."""
@@ -314,5 +326,8 @@ class LavaSimPredictor(Backend):
     def open_engine(self, policy: LoadedPolicy, arithmetic: Arithmetic) -> Engine:
         if self.fixed is None:
             check_lava_compatible(policy.chain)
-        self.worker = LavaWorker(lava_spec(policy.chain, policy.num_steps, arithmetic, self.fixed))
+        spec = lava_spec(
+            policy.chain, policy.num_steps, arithmetic, self.fixed, policy.manifest.state_persists
+        )
+        self.worker = LavaWorker(spec)
         return self.worker

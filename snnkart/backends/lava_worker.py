@@ -16,9 +16,14 @@ Network (L = layers - 1 Dense synapses, window W = T + L):
     HostBridge.a_out -> LIFReset_0 -> Dense_1 -> LIFReset_1 -> ... -> LIFReset_{L}
     every LIFReset_i.s_out -> HostBridge.s_in{i}      (the spike raster, read back per window)
 
-with ``LIFReset(reset_interval=W, reset_offset=(i + 1) % W)``. Lava stays running for the whole
-session in one non-blocking ``RunSteps``; the bridge blocks on the host at the start of each
-window, so the host paces it, and a close request makes the bridge ask the runtime to stop.
+with ``LIFReset(reset_interval=W, reset_offset=(i + 1) % W)``, or for a stateful policy
+(``LavaSpec.persist``) plain ``LIF`` processes (the same bit-accurate arithmetic, never reset):
+the state carries from window to window. Lava stays running for the whole session in one
+non-blocking ``RunSteps``; the bridge blocks on the host at the start of each window, so the
+host paces it, and a close request makes the bridge ask the runtime to stop. A ``("reset",)``
+request (a stateful policy's episode start) stops the runtime and builds the network again, from
+zero state, and answers ``("ready", info)``: what a host does on a chip by writing zeros to the
+neuron and synapse state between episodes.
 """
 
 from __future__ import annotations
@@ -142,7 +147,7 @@ class LavaNetwork(BridgedNetwork):
 
     def __init__(self, spec: LavaSpec) -> None:
         from lava.proc.dense.process import Dense
-        from lava.proc.lif.process import LIFReset
+        from lava.proc.lif.process import LIF, LIFReset
 
         from snnkart.backends.lava_procs.bridge import HostBridge
 
@@ -154,16 +159,12 @@ class LavaNetwork(BridgedNetwork):
         bridge = HostBridge(sizes=self.sizes, num_steps=self.T, name="host_bridge")
         self.lifs = []
         for i, layer in enumerate(spec.layers):
-            lif = LIFReset(
-                shape=(self.sizes[i],),
-                du=layer.du,
-                dv=layer.dv,
-                vth=layer.vth,
-                bias_mant=layer.bias_mant,
-                bias_exp=layer.bias_exp,
-                reset_interval=self.W,
-                reset_offset=(i + 1) % self.W,
-                name=f"lif{i}",
+            common = dict(shape=(self.sizes[i],), du=layer.du, dv=layer.dv, vth=layer.vth,
+                          bias_mant=layer.bias_mant, bias_exp=layer.bias_exp, name=f"lif{i}")  # fmt: skip
+            lif = (
+                LIF(**common)
+                if spec.persist
+                else LIFReset(**common, reset_interval=self.W, reset_offset=(i + 1) % self.W)
             )
             self.lifs.append(lif)
             lif.s_out.connect(getattr(bridge, f"s_in{i}"))
@@ -270,6 +271,12 @@ def main() -> int:
                 msg = ("close",)
             if msg[0] == "window":
                 write_msg(proto_out, ("raster", net.window(msg[1])), phase="reply")
+            elif msg[0] == "reset":
+                windows = net.windows
+                net.close()
+                net = LavaNetwork(spec)
+                net.windows = windows
+                write_msg(proto_out, ("ready", {"startup_s": net.startup_s, "pid": os.getpid()}))
             elif msg[0] == "close":
                 net.close()
                 try:

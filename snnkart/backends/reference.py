@@ -22,6 +22,11 @@ Lava's time starting at 1) and computes the policy's logical steps 0..T-1 at row
 The other rows are the pipeline's fill and drain: their neuron updates and (bias-driven) spikes
 are counted apart as overhead, so the policy's own counts equal the float32 window's.
 
+A stateful policy (manifest ``state_persists``, docs/stateful.md) runs the same W rows per env
+step with no reset: every arithmetic, float32 included (:class:`Float32Stream`, torch's order on
+the row stream training simulated), carries the membranes and the Dense buffers from env step to
+env step, and ``reset()`` (an episode's start) zeroes them.
+
 Sharp edges: only feed-forward chains (:mod:`snnkart.backends.network`); the Lava arithmetics
 need snntorch-style layers (uniform beta and threshold, reset to 0, no leak term).
 """
@@ -154,16 +159,33 @@ class _LavaPipeline(_Simulator):
 
     weights: list[np.ndarray]  # the Dense weights feeding layers 1.. (index i-1)
     buffers: list[np.ndarray]  # what each Dense sends next step
+    u: list[np.ndarray]
+    v: list[np.ndarray]
 
-    def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
+    def __init__(self, chain: ChainNetwork, num_steps: int, persist: bool = False) -> None:
         super().__init__(chain, num_steps)
         check_lava_compatible(chain)
         self.depth = self.L
         self.W = num_steps + self.L
         self.t = 1  # Lava's first time step
+        self.persist = persist
+
+    def reset(self) -> None:
+        """An episode's start: a persisting pipeline zeroes its state (a per-window one has
+        nothing to forget)."""
+        if self.persist:
+            self._zero()
+
+    def _zero(self) -> None:
+        for x in (*self.u, *self.v, *self.buffers):
+            x[...] = 0
 
     def _reset_due(self, i: int) -> bool:
-        return self.t % self.W == (i + 1) % self.W
+        return not self.persist and self.t % self.W == (i + 1) % self.W
+
+    def _deliver(self, i: int, spikes: np.ndarray) -> None:
+        """Dense i integrates layer i-1's spikes of this row into what it sends next row."""
+        self.buffers[i - 1] = self.weights[i - 1][:, spikes].sum(axis=1)
 
     def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
         raise NotImplementedError
@@ -180,9 +202,49 @@ class _LavaPipeline(_Simulator):
                 raster[r, offsets[i] : offsets[i + 1]] = s
                 spikes.append(s)
             for i in range(1, K):  # each Dense sent its old buffer first, then integrates
-                self.buffers[i - 1] = self.weights[i - 1][:, spikes[i - 1]].sum(axis=1)
+                self._deliver(i, spikes[i - 1])
             self.t += 1
         return raster
+
+
+class Float32Stream(_LavaPipeline):
+    """A stateful policy in torch's order on Lava's row stream (what training simulates,
+    :mod:`snnkart.rl.stateful`): float32, ``v = beta v + I``, spike if ``v - theta > 0``, reset
+    to 0; layer i > 0 gets ``W_i s_{i-1} + b_i`` of the row before, layer 0 the host's current
+    on rows < T and 0 on the drain rows. Nothing is reset inside or between windows; ``reset()``
+    zeroes the state (an episode's start)."""
+
+    arithmetic: Arithmetic = "float32"
+
+    def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
+        super().__init__(chain, num_steps, persist=True)
+        if any(layer.alpha is not None for layer in chain.layers):
+            raise ManifestError(
+                "a stateful policy runs plain LIF layers; this graph has CubaLIF nodes"
+            )
+        f32 = np.float32
+        self.w32 = [layer.weight for layer in chain.layers]
+        self.b32 = [layer.bias for layer in chain.layers]
+        self.beta = [layer.beta.astype(f32) for layer in chain.layers]
+        self.theta = [layer.threshold.astype(f32) for layer in chain.layers]
+        self.u: list[np.ndarray] = []
+        self.v = [np.zeros(n, dtype=f32) for n in self.sizes]
+        self.buffers = [np.zeros(n, dtype=f32) for n in self.sizes[1:]]
+        self._zero()  # layer i > 0 gets its bias b_i from the first row on
+
+    def _zero(self) -> None:
+        super()._zero()
+        for i in range(1, len(self.sizes)):  # no spikes in flight: W_i 0 + b_i
+            self.buffers[i - 1][...] = self.b32[i]
+
+    def _deliver(self, i: int, spikes: np.ndarray) -> None:
+        self.buffers[i - 1] = self.w32[i] @ spikes.astype(np.float32) + self.b32[i]
+
+    def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
+        self.v[i] = self.beta[i] * self.v[i] + a_in.astype(np.float32, copy=False)
+        s = self.v[i] - self.theta[i] > 0
+        self.v[i][s] = 0
+        return s
 
 
 class LavaFloatChain(_LavaPipeline):
@@ -193,8 +255,8 @@ class LavaFloatChain(_LavaPipeline):
 
     arithmetic: Arithmetic = "float64"
 
-    def __init__(self, chain: ChainNetwork, num_steps: int) -> None:
-        super().__init__(chain, num_steps)
+    def __init__(self, chain: ChainNetwork, num_steps: int, persist: bool = False) -> None:
+        super().__init__(chain, num_steps, persist)
         params = lava_layers(chain, "float64")
         self.weights = [np.asarray(p.weight) for p in params[1:]]
         self.du = [float(p.du) for p in params]
@@ -224,9 +286,13 @@ class LavaFixedChain(_LavaPipeline):
     arithmetic: Arithmetic = "fixed"
 
     def __init__(
-        self, chain: ChainNetwork, num_steps: int, fixed: FixedPointNetwork | None = None
+        self,
+        chain: ChainNetwork,
+        num_steps: int,
+        fixed: FixedPointNetwork | None = None,
+        persist: bool = False,
     ) -> None:
-        super().__init__(chain, num_steps)
+        super().__init__(chain, num_steps, persist)
         self.fixed = fixed if fixed is not None else quantize(chain)
         q = self.fixed.layers
         self.weights = [np.asarray(layer.weight) for layer in q[1:]]
@@ -261,20 +327,23 @@ def ChainSimulator(
     num_steps: int,
     arithmetic: str,
     fixed: FixedPointNetwork | None = None,
-) -> Float32Chain | LavaFloatChain | LavaFixedChain:
-    """The simulator of ``chain`` in ``arithmetic`` (one class per arithmetic)."""
+    persist: bool = False,
+) -> Float32Chain | Float32Stream | LavaFloatChain | LavaFixedChain:
+    """The simulator of ``chain`` in ``arithmetic`` (one class per arithmetic); ``persist``:
+    a stateful policy's (the state carries across windows)."""
     checked = check_arithmetic(arithmetic)
     if checked == "float32":
-        return Float32Chain(chain, num_steps)
+        return Float32Stream(chain, num_steps) if persist else Float32Chain(chain, num_steps)
     if checked == "float64":
-        return LavaFloatChain(chain, num_steps)
-    return LavaFixedChain(chain, num_steps, fixed)
+        return LavaFloatChain(chain, num_steps, persist)
+    return LavaFixedChain(chain, num_steps, fixed, persist)
 
 
 def reference_engine(policy: LoadedPolicy, arithmetic: Arithmetic) -> Engine:
     """The numpy engine running ``policy`` in ``arithmetic``."""
     fixed = policy.fixed if arithmetic == "fixed" else None
-    return ChainSimulator(policy.chain, policy.num_steps, arithmetic, fixed)
+    persist = policy.manifest.state_persists
+    return ChainSimulator(policy.chain, policy.num_steps, arithmetic, fixed, persist)
 
 
 class NIRReference(Backend):
@@ -297,6 +366,7 @@ __all__ = [
     "ARITHMETICS",
     "ChainSimulator",
     "Float32Chain",
+    "Float32Stream",
     "LavaFixedChain",
     "LavaFloatChain",
     "ManifestError",

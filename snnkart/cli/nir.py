@@ -66,6 +66,8 @@ def info(
         typer.echo(f"dt: {facts.dt:g} s from {facts.dt_source}, {facts.discretisation}")
         for layer in facts.layers:
             typer.echo("  " + _layer_line(layer))
+    if facts.state is not None:
+        typer.echo(f"state: {facts.state}")
     typer.echo(f"nir-ref: {facts.reference}")
     if facts.reference == "supported" and facts.dt is None:
         typer.echo("lava-sim: unknown until a time step is given (--dt): it decides the decays")

@@ -48,7 +48,8 @@ class Manifest:
     schema: str
     nir_file: str
     nir_dt: float  # the dt of the NIR time constants: tau = dt / (1 - beta), r = tau / dt
-    num_steps: int  # T SNN steps per env step; membranes reset to 0 before each env step
+    num_steps: int  # T SNN steps per env step; membranes reset to 0 before each (but see
+    # state_persists: then each env step is T + L Lava steps from the last one's state)
     layers: tuple[LayerSpec, ...]
     encoding: str  # "current" | "rate" | "population"
     obs_mean: tuple[float, ...]
@@ -65,7 +66,8 @@ class Manifest:
     track: dict[str, str] | None = None  # the trained track (v2; None in v1 manifests)
     population: int | None = None  # population encoding: receptive fields per observation
     discretisation: str = "euler"  # of the time constants at nir_dt: euler or exact (exp)
-    state_persists: bool = False  # v3: no reset per env step, the state carries on
+    state_persists: bool = False  # v3: no reset per env step, the state carries on, zeroed
+    # at an episode's start (docs/stateful.md)
     sigma_delta: SigmaDeltaBlock | None = None  # v3: a sigma-delta policy (layers is empty)
 
     def __post_init__(self) -> None:

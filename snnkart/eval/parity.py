@@ -85,7 +85,11 @@ class CheckedPredictor:
         self.episode, self.episode_step = -1, 0  # where the first parity mismatch happened
 
     def reset(self) -> None:
-        self.primary.reset()
+        """An episode's start, for the backend and its references alike (a stateful policy's
+        state is zeroed in each)."""
+        for backend in (self.primary, self.exact, self.float32):
+            if backend is not None:
+                backend.reset()
         self.episode += 1
         self.episode_step = 0
 

@@ -154,6 +154,7 @@ def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
         versions=versions(),
         encoding_rng=RATE_RNG if cfg.snn.encoding == "rate" else None,
         population=cfg.snn.population if cfg.snn.encoding == "population" else None,
+        state_persists=cfg.snn.stateful,
         track=run.track_record() if run.track is not None else None,
         training={
             "run": str(run.run_dir),

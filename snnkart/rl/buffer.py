@@ -6,7 +6,7 @@ reads them flattened to ``[steps * envs, ...]``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,3 +131,42 @@ class RolloutBuffer:
             ),
             previous=None if self.previous is None else self.previous.reshape(n, obs_dim),
         )
+
+
+@dataclass
+class Sequences:
+    """A stateful actor's rollout as env sequences: its state before the rollout's first step
+    ``[envs, D]`` and ``starts`` ``[steps, envs]``, 1 where an episode began at that step
+    (after the episode before ended; the state is zeroed there)."""
+
+    state0: torch.Tensor
+    starts: torch.Tensor
+
+    @classmethod
+    def of(cls, state0: torch.Tensor, ends: torch.Tensor) -> Sequences:
+        starts = torch.zeros_like(ends)
+        starts[1:] = ends[:-1]
+        return cls(state0, starts)
+
+
+def minibatches(
+    b: Batch, n: int, rng: np.random.Generator, seq: Sequences | None = None
+) -> Iterator[tuple[Batch, dict[str, torch.Tensor]]]:
+    """One epoch's ``n`` minibatches and what the policy needs beside them: shuffled rows, or
+    (``seq``, a stateful actor) whole env sequences, ``envs / n`` envs each, time-major, with
+    their initial state and episode starts (as recurrent PPO implementations split a rollout)."""
+    if seq is None:
+        batch = b.obs.shape[0]
+        size = batch // n
+        epoch = b.shuffled(rng.permutation(batch))
+        for start in range(0, size * n, size):
+            yield epoch.rows(start, start + size), {}
+        return
+    steps, envs = seq.starts.shape
+    per = envs // n
+    order = rng.permutation(envs)
+    for k in range(n):
+        idx = order[k * per : (k + 1) * per]
+        rows = (np.arange(steps)[:, None] * envs + idx[None, :]).reshape(-1)
+        index = torch.from_numpy(idx)
+        yield b.shuffled(rows), {"state": seq.state0[index], "starts": seq.starts[:, index]}

@@ -28,6 +28,7 @@ from snnkart.errors import ConfigError, did_you_mean
 from snnkart.rl.config_defaults import ENV_POLICY_DEFAULTS, POLICY_DEFAULTS
 from snnkart.rl.config_names import renamed_keys
 from snnkart.rl.sdnn_config import SDNNConfig
+from snnkart.rl.stateful_config import stateful_problem
 
 if TYPE_CHECKING:
     from snnkart.envs.tracks import Track
@@ -142,6 +143,9 @@ class SNNConfig(_Section):
     fused: bool = Field(
         True, description="use the fused LIF kernel in training and evaluation (tested equal)"
     )
+    stateful: bool = Field(
+        False, description="membranes carry across env steps (docs/stateful.md; recurrent PPO)"
+    )
 
     @field_validator("hidden")
     @classmethod
@@ -254,6 +258,8 @@ class TrainConfig(BaseModel):
                 f"ppo.num_envs * ppo.rollout_steps = {batch} is smaller than "
                 f"ppo.num_minibatches = {self.ppo.num_minibatches}"
             )
+        if self.snn.stateful and self.policy == "snn":
+            stateful_problem(self)
         return self
 
     @property

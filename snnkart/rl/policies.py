@@ -4,40 +4,33 @@ sigma-delta actor (SDNN) is :mod:`snnkart.rl.sdnn`'s, its policy here.
 All share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
 The critic is always an MLP: it never leaves the host. The spiking actor is built for
 deployment on Lava (the README's "Deployment" section): reset-to-zero LIF neurons, one
-beta and one threshold per layer, membranes reset at every env step, no recurrence.
+beta and one threshold per layer, membranes reset at every env step, no recurrence; or, with
+``snn.stateful``, membranes that carry across env steps (:class:`StatefulSNNPolicy`).
 """
 
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
-import snntorch as snn
 import torch
-from snntorch import surrogate
 from torch import nn
 from torch.distributions import Categorical, Normal
 
 from snnkart.contract.encoding import population_centres
 from snnkart.envs.base import KartEnv
 from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
-from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
 from snnkart.rl.sdnn import SigmaDeltaActor, changed_share, message_proxy
 from snnkart.rl.sdnn_config import SDNNConfig
+from snnkart.rl.spiking import SpikingActor, layer_init
+from snnkart.rl.stateful import state_size, stream_sequence, stream_step
+from snnkart.rl.stateful_lif import fused_stream_sequence
 
 BETA_MAX = 0.999
 """Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
 THRESHOLD_MIN = 1e-3
-
-
-def layer_init(layer: nn.Linear, std: float = math.sqrt(2.0), bias: float = 0.0) -> nn.Linear:
-    """Orthogonal weights with gain ``std`` and constant bias (CleanRL's ``layer_init``)."""
-    nn.init.orthogonal_(layer.weight, std)
-    nn.init.constant_(layer.bias, bias)
-    return layer
 
 
 ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU}
@@ -61,6 +54,7 @@ class PolicyOutput:
     value: torch.Tensor
     input_spikes: torch.Tensor | None  # rate encoding: the sampled input trains [B, T, n_in]
     rates: torch.Tensor | None  # SNN: mean firing rate per layer [n_layers]
+    state: torch.Tensor | None = None  # stateful SNN: the actor's state after this step
 
 
 class ActorCritic(nn.Module):
@@ -102,6 +96,19 @@ class ActorCritic(nn.Module):
     ) -> PolicyOutput:
         """``obs`` is normalised (critic, ANN actor); ``raw_obs`` is the env's observation."""
         out, spikes, rates = self.actor_output(obs, raw_obs, input_spikes)
+        return self.output(out, obs, action, spikes, rates)
+
+    def output(
+        self,
+        out: torch.Tensor,
+        obs: torch.Tensor,
+        action: torch.Tensor | None,
+        spikes: torch.Tensor | None,
+        rates: torch.Tensor | None,
+        state: torch.Tensor | None = None,
+    ) -> PolicyOutput:
+        """The action distribution of the actor's ``out``, a sample of it unless ``action`` is
+        given, its log-probability, entropy and the critic's value of ``obs``."""
         dist = self.distribution(out)
         if action is None:
             action = dist.sample()
@@ -109,7 +116,7 @@ class ActorCritic(nn.Module):
         entropy = dist.entropy()
         if not self.discrete:
             log_prob, entropy = log_prob.sum(-1), entropy.sum(-1)
-        return PolicyOutput(action, log_prob, entropy, self.value(obs), spikes, rates)
+        return PolicyOutput(action, log_prob, entropy, self.value(obs), spikes, rates, state)
 
     @torch.no_grad()
     def act_deterministic(
@@ -139,104 +146,6 @@ class ANNPolicy(ActorCritic):
 
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
         return self.actor(obs), None, None
-
-
-class SpikingActor(nn.Module):
-    """Encoding -> Linear -> LIF -> Linear -> LIF -> mean spike count -> Linear readout.
-
-    Each env step is one window of ``T`` SNN steps, starting from zero membranes:
-
-        I1[t] = W1 x[t] + b1            (rate: x[t] ~ Bernoulli(obs01); current: x[t] = z)
-        U1[t] = beta1 U1[t-1] (1 - S1[t-1]) + I1[t],   S1[t] = H(U1[t] - theta1)
-        U2[t] = beta2 U2[t-1] (1 - S2[t-1]) + W2 S1[t] + b2,  S2[t] = H(U2[t] - theta2)
-        out   = W3 mean_t(S2[t]) + b3
-
-    ``obs01`` is the observation scaled to [0, 1] by the env's (true) bounds, ``z`` the
-    observation normalised by the running mean and standard deviation (frozen in the
-    checkpoint, applied on the host at deployment). The reset is
-    reset-to-zero (snntorch ``reset_mechanism="zero"``), the surrogate gradient the fast
-    sigmoid ``1 / (1 + k|U - theta|)^2``. Inputs ``[B, n_in]``, output ``[B, n_out]``.
-    """
-
-    def __init__(self, n_in: int, n_out: int, cfg: SNNConfig) -> None:
-        super().__init__()
-        self.cfg = cfg
-        self.T = cfg.num_steps
-        sizes = (n_in, *cfg.hidden)
-        # Layers are attributes fc1, lif1, fc2, lif2, ... (the state-dict keys of every
-        # checkpoint written so far); ``fcs`` and ``lifs`` list them in order.
-        for i, (a, b) in enumerate(itertools.pairwise(sizes), start=1):
-            setattr(self, f"fc{i}", nn.Linear(a, b, bias=i == 1 or cfg.hidden_bias))
-        self.readout = layer_init(nn.Linear(sizes[-1], n_out), std=0.01)
-        self.fcs: list[nn.Linear] = [getattr(self, f"fc{i}") for i in range(1, len(sizes))]
-        with torch.no_grad():
-            for fc in self.fcs:
-                fc.weight.mul_(cfg.init_gain)
-        for i in range(1, len(sizes)):
-            setattr(self, f"lif{i}", _neuron(cfg))
-        self.lifs: list[snn.Leaky] = [getattr(self, f"lif{i}") for i in range(1, len(sizes))]
-        self.cuba = cfg.neuron == "cuba"
-
-    def encode(self, obs01: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Rate encoding: Bernoulli spike trains ``[B, T, n_in]`` with p = obs01."""
-        p = obs01.clamp(0.0, 1.0).unsqueeze(1).expand(-1, self.T, -1)
-        return torch.bernoulli(p, generator=generator)
-
-    def forward(
-        self, obs01: torch.Tensor, input_spikes: torch.Tensor | None = None, fused: bool = False
-    ) -> tuple[torch.Tensor, torch.Tensor, list[torch.Tensor]]:
-        """Returns (readout output, mean firing rate per layer, spike records ``[T, B, n]``)."""
-        B = obs01.shape[0]
-        if self.cfg.encoding == "rate":
-            if input_spikes is None:
-                input_spikes = self.encode(obs01)
-            current = self.fcs[0](input_spikes).transpose(0, 1)  # [T, B, h1]
-        else:
-            current = self.fcs[0](obs01).unsqueeze(0).expand(self.T, -1, -1)
-        spikes: list[torch.Tensor] = []
-        if fused:
-            slope = self.cfg.surrogate_slope
-            for i, lif in enumerate(self.lifs):
-                if i > 0:
-                    current = self.fcs[i](spikes[-1])
-                spikes.append(
-                    fused_cuba_layer(current, lif.alpha, lif.beta, lif.threshold, slope)
-                    if self.cuba
-                    else fused_lif_layer(current, lif.beta, lif.threshold, slope)
-                )
-        else:
-            spikes = self._stepped(current, B)
-        out = self.readout(spikes[-1].mean(0))
-        rates = torch.stack([s.mean() for s in spikes])
-        return out, rates, spikes
-
-    def _stepped(self, current: torch.Tensor, B: int) -> list[torch.Tensor]:
-        """snntorch's modules stepped T times from zero state: spikes ``[T, B, n]`` per layer."""
-        mems = [torch.zeros(B, fc.out_features) for fc in self.fcs]
-        syns = [torch.zeros(B, fc.out_features) for fc in self.fcs]
-        steps: list[list[torch.Tensor]] = [[] for _ in self.lifs]
-        for t in range(self.T):
-            a = current[t]
-            for i, lif in enumerate(self.lifs):
-                x = a if i == 0 else self.fcs[i](a)
-                if self.cuba:
-                    a, syns[i], mems[i] = lif(x, syns[i], mems[i])
-                else:
-                    a, mems[i] = lif(x, mems[i])
-                steps[i].append(a)
-        return [torch.stack(s) for s in steps]
-
-
-def _neuron(cfg: SNNConfig) -> snn.Leaky:
-    """One spiking layer's neurons: reset to zero right after a spike (Lava's semantics)."""
-    common = dict(
-        beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
-        spike_grad=surrogate.fast_sigmoid(slope=cfg.surrogate_slope), reset_mechanism="zero",
-        reset_delay=False, learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
-    )  # fmt: skip
-    if cfg.neuron == "cuba":
-        return snn.Synaptic(alpha=torch.tensor(cfg.alpha), learn_alpha=cfg.learn_alpha, **common)
-    return snn.Leaky(**common)
 
 
 class SNNPolicy(ActorCritic):
@@ -351,6 +260,62 @@ class SDNNPolicy(ActorCritic):
         return changed_share(now, before)
 
 
+class StatefulSNNPolicy(SNNPolicy):
+    """A spiking actor whose membranes carry across env steps (``snn.stateful``): each env step
+    is the Lava row stream of :mod:`snnkart.rl.stateful` from the state the last one left.
+
+    ``forward`` takes the state ``[B, D]`` before this step (``state``), or with ``starts``
+    ``[S, E]`` whole env sequences (``obs`` time-major ``[S * E, ...]``, ``state`` ``[E, D]``
+    before step 0, zeroed where an episode starts), and returns the new state in
+    :attr:`PolicyOutput.state`."""
+
+    stateful = True
+
+    def state_size(self) -> int:
+        return state_size(tuple(self.cfg.hidden))
+
+    def initial_state(self, batch: int) -> torch.Tensor:
+        """The state at an episode's start: zero membranes, no spikes in flight."""
+        return torch.zeros(batch, self.state_size())
+
+    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
+        raise TypeError("a stateful policy acts from a state: call it with state=")
+
+    def forward(  # type: ignore[override]
+        self,
+        obs: torch.Tensor,
+        raw_obs: torch.Tensor,
+        action: torch.Tensor | None = None,
+        input_spikes: torch.Tensor | None = None,
+        state: torch.Tensor | None = None,
+        starts: torch.Tensor | None = None,
+    ) -> PolicyOutput:
+        if state is None:
+            raise TypeError("a stateful policy acts from a state: call it with state=")
+        x = self.actor_input(obs, raw_obs)
+        new: torch.Tensor | None
+        if starts is None:
+            out, rates, new = stream_step(self.snn, x, state)
+        else:
+            run = fused_stream_sequence if self.cfg.fused else stream_sequence
+            out, rates, new = run(self.snn, x, state, starts)
+        return self.output(out, obs, action, None, rates, new)
+
+    @torch.no_grad()
+    def act_from(
+        self, obs: torch.Tensor, raw_obs: torch.Tensor, state: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The deterministic action (argmax or mean) from ``state``, and the new state."""
+        was = self.training
+        self.eval()
+        try:
+            out, rates, new = stream_step(self.snn, self.actor_input(obs, raw_obs), state)
+        finally:
+            self.train(was)
+        self.last_rates = rates.detach()
+        return (out.argmax(-1) if self.discrete else out), new
+
+
 def build_policy(
     kind: str,
     obs_dim: int,
@@ -367,7 +332,7 @@ def build_policy(
     if kind == "ann":
         return ANNPolicy(obs_dim, action_dim, discrete, ann, init_log_std)
     if kind == "snn":
-        return SNNPolicy(
+        return (StatefulSNNPolicy if snn_cfg.stateful else SNNPolicy)(
             obs_dim, action_dim, discrete, snn_cfg, ann.hidden, obs_low, obs_high, init_log_std
         )
     if kind == "sdnn":

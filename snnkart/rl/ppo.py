@@ -28,7 +28,7 @@ from snnkart import faults
 from snnkart.envs.spec import env_spec, spec_hash
 from snnkart.envs.tracks import embed_track, load_track
 from snnkart.errors import RunError
-from snnkart.rl.buffer import Batch, RolloutBuffer, compute_gae
+from snnkart.rl.buffer import Batch, RolloutBuffer, Sequences, compute_gae, minibatches
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
@@ -263,7 +263,8 @@ class Trainer:
                 buf.rewards, buf.values, buf.ends, last_value, p.gamma, p.gae_lambda
             )
         update_start = time.perf_counter()
-        losses = self.update(buf.flat(advantages, returns))
+        flat, seq = buf.flat(advantages, returns), self.rollout.sequences(buf)
+        losses = self.update(flat) if seq is None else self.update(flat, seq)
         update_time = time.perf_counter() - update_start
         record = self._record(stats, losses, rollout_time, update_time)
         stop = check(self.cfg, self.progress, self.policy, self.obs_rms, self.track, _interrupted)
@@ -285,17 +286,15 @@ class Trainer:
             self.save(history=False)
         return record
 
-    def update(self, b: Batch) -> dict[str, float]:
-        """PPO epochs over shuffled minibatches; returns the last epoch's mean losses."""
+    def update(self, b: Batch, seq: Sequences | None = None) -> dict[str, float]:
+        """PPO epochs over shuffled minibatches (``seq``: of whole env sequences, a stateful
+        actor's); returns the last epoch's mean losses."""
         p = self.cfg.ppo
-        batch = b.obs.shape[0]
-        mb_size = batch // p.num_minibatches
         clipfracs: list[float] = []
         first_ratio_dev = float("nan")
         for _epoch in range(p.update_epochs):
-            epoch = b.shuffled(self.rng.permutation(batch))
-            for start in range(0, mb_size * p.num_minibatches, mb_size):
-                losses, ratio, logratio = self._minibatch_loss(epoch.rows(start, start + mb_size))
+            for mb, extra in minibatches(b, p.num_minibatches, self.rng, seq):
+                losses, ratio, logratio = self._minibatch_loss(mb, extra)
                 with torch.no_grad():
                     approx_kl = ((ratio - 1) - logratio).mean().item()
                     clipfracs.append(((ratio - 1.0).abs() > p.clip_coef).float().mean().item())
@@ -323,11 +322,13 @@ class Trainer:
         }
 
     def _minibatch_loss(
-        self, mb: Batch
+        self, mb: Batch, extra: dict[str, torch.Tensor] | None = None
     ) -> tuple[dict[str, torch.Tensor], torch.Tensor, torch.Tensor]:
         """The PPO loss of one minibatch, its parts, and the probability ratios."""
         p = self.cfg.ppo
-        out = self.policy(mb.obs, mb.raw, action=mb.actions, input_spikes=mb.spikes)
+        out = self.policy(
+            mb.obs, mb.raw, action=mb.actions, input_spikes=mb.spikes, **(extra or {})
+        )
         pg_loss, ratio, logratio = clipped_surrogate(
             out.log_prob, mb.logprobs, mb.advantages, p.clip_coef, p.norm_adv
         )

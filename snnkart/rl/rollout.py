@@ -18,10 +18,10 @@ import torch
 
 from snnkart.envs.base import KartEnv
 from snnkart.envs.tracks import Track
-from snnkart.rl.buffer import RolloutBuffer
+from snnkart.rl.buffer import RolloutBuffer, Sequences
 from snnkart.rl.config import PPOConfig, TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
-from snnkart.rl.policies import ActorCritic, SDNNPolicy
+from snnkart.rl.policies import ActorCritic, SDNNPolicy, StatefulSNNPolicy
 
 
 class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
@@ -108,6 +108,8 @@ class Rollout:
         self.first_positions = np.zeros((envs, 2), dtype=np.float32)
         self.fresh = np.zeros(envs, dtype=bool)
         self.episode_start = np.zeros(envs, dtype=bool)
+        self.actor_state: torch.Tensor | None = None  # a stateful actor's, per env
+        self.start_state: torch.Tensor | None = None  # ... before the last rollout
 
     def reset(self, seed: int) -> None:
         self.next_raw, _ = self.envs.reset(seed=seed)
@@ -115,6 +117,7 @@ class Rollout:
         self.ep_return = np.zeros(self.ppo.num_envs)
         self.ep_length = np.zeros(self.ppo.num_envs, dtype=np.int64)
         self.fresh[:] = True
+        self.actor_state = None  # every env starts an episode: zero state
 
     def collect(
         self,
@@ -132,14 +135,20 @@ class Rollout:
         self.reset_positions[:] = 0.0
         self.first_positions[:] = [kart.position for kart in self.karts]
         self.episode_start[:], self.fresh[:] = self.fresh, False
+        if isinstance(policy, StatefulSNNPolicy) and self.actor_state is None:
+            self.actor_state = policy.initial_state(E)
+        self.start_state = self.actor_state
+        extra: dict[str, Any] = {}
         for step in range(p.rollout_steps):
             progress.global_step += E
             if p.norm_obs:
                 obs_rms.update(self.next_raw)
             obs_t = torch.from_numpy(normalize_obs(obs_rms, p, self.next_raw))
             raw_t = torch.from_numpy(np.asarray(self.next_raw, dtype=np.float32))
+            if self.actor_state is not None:  # a stateful actor acts from its state
+                extra = {"state": self.actor_state}
             with torch.no_grad():
-                out = policy(obs_t, raw_t)
+                out = policy(obs_t, raw_t, **extra)
             buf.obs[step], buf.raw[step] = obs_t, raw_t
             buf.actions[step], buf.logprobs[step], buf.values[step] = (
                 out.action,
@@ -157,6 +166,8 @@ class Rollout:
             self._step(step, out.action.numpy(), policy, obs_rms, buf, progress, stats)
             done = buf.ends[step].numpy()[:, None] > 0
             self.previous_raw = np.where(done, self.next_raw, current)
+            if out.state is not None:  # an episode that ended starts the next from zero
+                self.actor_state = out.state * (1.0 - buf.ends[step]).unsqueeze(-1)
             if interrupted():
                 return False
         return True
@@ -192,6 +203,12 @@ class Rollout:
         buf.ends[step] = torch.from_numpy(done.astype(np.float32))
         for i in np.flatnonzero(done):
             self._episode_end(info, i, progress, stats)
+
+    def sequences(self, buf: RolloutBuffer) -> Sequences | None:
+        """The last rollout as env sequences (a stateful actor's), else None."""
+        if self.start_state is None:
+            return None
+        return Sequences.of(self.start_state, buf.ends)
 
     def trajectory(self) -> dict[str, np.ndarray]:
         """The last rollout's kart poses (px), as ``trajectories/iter_NNNNNN.npz`` stores them:

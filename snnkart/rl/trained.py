@@ -15,7 +15,7 @@ from snnkart.rl.checkpoint import CheckpointError
 from snnkart.rl.config import TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import open_run
-from snnkart.rl.policies import ActorCritic, SNNPolicy
+from snnkart.rl.policies import ActorCritic, SNNPolicy, StatefulSNNPolicy
 from snnkart.rl.rollout import normalize_obs
 
 
@@ -68,9 +68,11 @@ class TorchPredictor:
         self.generator = torch.Generator().manual_seed(seed)
         self.rng = rate_generator(seed)
         self.discrete = run.policy.discrete
+        self.state: torch.Tensor | None = None  # a stateful actor's, from the episode's start
 
     def reset(self) -> None:
-        pass
+        """An episode starts: a stateful actor's state is zeroed (the deployment does too)."""
+        self.state = None
 
     def predict(self, obs: np.ndarray) -> Any:
         raw = np.asarray(obs, dtype=np.float32)[None]
@@ -82,11 +84,18 @@ class TorchPredictor:
             low = self.policy.obs_low.numpy()
             p = rate_probabilities(raw[0], low, low + self.policy.obs_span.numpy())
             spikes = torch.from_numpy(rate_spikes(self.rng, p, self.policy.cfg.num_steps))[None]
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(self._next_seed())
-            action = self.policy.act_deterministic(
-                torch.from_numpy(norm), torch.from_numpy(raw), spikes
+        if isinstance(self.policy, StatefulSNNPolicy):
+            if self.state is None:
+                self.state = self.policy.initial_state(1)
+            action, self.state = self.policy.act_from(
+                torch.from_numpy(norm), torch.from_numpy(raw), self.state
             )
+        else:
+            with torch.random.fork_rng(devices=[]):
+                torch.manual_seed(self._next_seed())
+                action = self.policy.act_deterministic(
+                    torch.from_numpy(norm), torch.from_numpy(raw), spikes
+                )
         a = action[0].numpy()
         return int(a) if self.discrete else np.clip(a, -1.0, 1.0).astype(np.float32)
 
