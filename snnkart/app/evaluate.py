@@ -162,11 +162,16 @@ def _describe(summary: Any) -> str:
 
 
 def run_eval_exported(
-    target: Path, checkpoint: str | Path | None, request: DeployRequest, reporter: Reporter
+    target: Path,
+    checkpoint: str | Path | None,
+    request: DeployRequest,
+    reporter: Reporter,
+    sigma_delta: bool = False,
 ) -> DeployRecord:
     """Evaluate on a spiking backend: ``target`` is a NIR file, or a run directory exported to a
-    temporary NIR file first; results go to the request's ``out`` or
-    ``eval-<backend>-<precision>/`` beside the target."""
+    temporary NIR file first (``sigma_delta``: a ReLU ANN run converted to a sigma-delta
+    network, as ``snnkart export --nir RUN --sigma-delta``); results go to the request's
+    ``out`` or ``eval-<backend>-<precision>/`` beside the target."""
     from snnkart.app.deploy import run_deploy_reported
 
     refuse_main_job_folder(target, exported=True)
@@ -176,9 +181,17 @@ def run_eval_exported(
             from snnkart.export.nir_export import export_nir
             from snnkart.rl.trained import load_run
 
-            nir_file, _ = export_nir(load_run(target, checkpoint), Path(tmp) / "policy.nir")
+            run = load_run(target, checkpoint)
+            if sigma_delta:
+                from snnkart.export.sigma_delta_export import export_sigma_delta
+
+                nir_file, _ = export_sigma_delta(run, Path(tmp) / "policy.nir")
+            else:
+                nir_file, _ = export_nir(run, Path(tmp) / "policy.nir")
             default_out = target / name
         else:
+            if sigma_delta:
+                raise UsageError("--sigma-delta converts a run directory, not a .nir file")
             nir_file, default_out = target, target.parent / name
         out = request.out or default_out
         return run_deploy_reported(replace(request, nir_file=nir_file, out=out), reporter)

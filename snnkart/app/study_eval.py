@@ -4,15 +4,16 @@ in fixed point, checked step by step against the reference of the same arithmeti
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.reporter import Reporter
 from snnkart.app.worker import EvalJob, WorkerRequest
 from snnkart.contract.deploy_record import DeployRecord, StepCounts
 from snnkart.contract.eval_record import EvalRecord, EvalSummary
+from snnkart.energy.sd_counts import SigmaDeltaCounts
 from snnkart.errors import UsageError
 from snnkart.report.study_record import DeployedRun, RunRecord
 
@@ -23,10 +24,18 @@ DEPLOY_DIR = "study-deploy-lava-sim-fixed"
 
 
 def exportable(run: Run) -> bool:
-    """An SNN the reference in fixed point (Lava's arithmetic) runs: LIF, or current-based LIF
-    trained without biases between its spiking layers (the default since they export)."""
+    """A policy the reference in fixed point (Lava's arithmetic) runs: LIF (stateful or not),
+    current-based LIF trained without biases between its spiking layers (the default since
+    they export), a trained sigma-delta network, or a ReLU ANN converted to one."""
     snn_cfg = run.spec.config.snn
+    if run.policy in ("sdnn", "ann-sd"):
+        return True
     return run.policy == "snn" and (snn_cfg.neuron == "lif" or not snn_cfg.hidden_bias)
+
+
+def converted(run: Run) -> bool:
+    """A run evaluated as the sigma-delta network converted from it (``--sigma-delta``)."""
+    return run.policy == "ann-sd"
 
 
 def eval_backend(run: Run) -> str:
@@ -41,7 +50,8 @@ def _eval_job(run: Run, runs_dir: Path, study: StudyConfig) -> tuple[EvalJob, Pa
     episodes, seed = study.eval_episodes, study.eval_seed
     if exportable(run):
         out = run_dir / "study-eval-nir-ref-fixed"
-        job = EvalJob(str(run_dir), episodes, seed, str(out), "nir-ref", "fixed")
+        job = EvalJob(str(run_dir), episodes, seed, str(out), "nir-ref", "fixed",
+                      sigma_delta=converted(run))  # fmt: skip
         return job, out / "deploy.json"
     out = run_dir / "study-eval.json"
     return EvalJob(str(run_dir), episodes, seed, str(out)), out
@@ -97,11 +107,12 @@ def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyCo
     """Each SNN cell's median-seed run on lava-sim in fixed point for
     ``study.deploy_episodes`` episodes (the evaluation's first seeds), one at a time (Lava
     runs its own processes); what each deployment gave and whether it was bit-exact."""
-    cells: dict[tuple[str, str, str], list[RunRecord]] = {}
+    cells: dict[tuple[str, str, str, str], list[RunRecord]] = {}
     for r in records:
         if r.eval_backend == "nir-ref fixed":
-            cells.setdefault((r.track, r.env, r.variant), []).append(r)
+            cells.setdefault((r.track, r.env, r.policy, r.variant), []).append(r)
     chosen = [median_seed(rs) for rs in cells.values()]
+    kinds = {r.name: r.policy for r in records}
     todo: list[tuple[str, WorkerRequest]] = []
     for r in chosen:
         run_dir = runs_dir / r.name
@@ -116,6 +127,7 @@ def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyCo
                         str(run_dir / DEPLOY_DIR),
                         "lava-sim",
                         "fixed",
+                        sigma_delta=kinds[r.name] == "ann-sd",
                     ),
                 )
             )
@@ -142,6 +154,8 @@ class Evaluation:
     summary: EvalSummary
     spikes_per_step: float | None = None
     counts_per_step: StepCounts | None = None
+    sigma_delta_counts: dict[str, Any] | None = None
+    """A sigma-delta network's counts per env step (:class:`SigmaDeltaCounts` as a dict)."""
 
 
 def _summary(path: Path) -> Evaluation:
@@ -153,4 +167,7 @@ def _summary(path: Path) -> Evaluation:
     steps = record.counts.env_steps
     if not steps:
         return Evaluation(record.summary)
+    if record.counts.sigma_delta is not None:
+        counts = asdict(SigmaDeltaCounts.of_deploy(record))
+        return Evaluation(record.summary, sigma_delta_counts=counts)
     return Evaluation(record.summary, sum(record.counts.spikes) / steps, StepCounts.of(record))

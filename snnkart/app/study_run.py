@@ -84,6 +84,13 @@ def load_study(path: Path) -> StudyConfig:
     return study
 
 
+TRAINED_AS = {"ann-sd": "ann"}
+"""Study policy kinds trained as another kind: ``ann-sd`` is a ReLU ANN run, converted to a
+sigma-delta network (``snnkart export --nir RUN --sigma-delta``) when it is evaluated."""
+KIND_SETS = {"ann-sd": ["ann.activation=relu"]}
+"""Settings a study policy kind implies (before the study's own)."""
+
+
 def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     """Every run of the study, in a fixed order (cell by cell, seeds inside); with ``only``,
     the runs of the cells whose ``track/env-policy`` matches one of these glob patterns."""
@@ -101,9 +108,10 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
                      *study.cells.get(f"{track_stem(track)}/{env}-{policy}", [])]  # fmt: skip
         for (variant, variant_sets), seed in itertools.product(_of(variants, policy), study.seeds):
             config = load_config(
-                overrides={"env": env, "policy": policy, "track": track, "seed": seed,
-                           "total_steps": study.steps},
-                sets=["run.tensorboard=false", *study.sets, *cell_sets, *variant_sets],
+                overrides={"env": env, "policy": TRAINED_AS.get(policy, policy),
+                           "track": track, "seed": seed, "total_steps": study.steps},
+                sets=["run.tensorboard=false", *KIND_SETS.get(policy, []), *study.sets,
+                      *cell_sets, *variant_sets],
             )  # fmt: skip
             name = "-".join([track_stem(track), env, policy, *([variant] if variant else []),
                              f"s{seed}"])  # fmt: skip

@@ -26,7 +26,12 @@ class StudyConfig(BaseModel):
     data: DataKind = Field(description="tuning or reporting data (docs/results.md)")
     tracks: list[str] = Field(["small_S"], min_length=1, description="built-in names or files")
     envs: list[str] = Field(["grid", "gazebo", "steer"], min_length=1)
-    policies: list[Literal["ann", "snn"]] = Field(["ann", "snn"], min_length=1)
+    policies: list[Literal["ann", "snn", "sdnn", "ann-sd"]] = Field(
+        ["ann", "snn"],
+        min_length=1,
+        description="ann, snn (LIF; stateful with snn.stateful=true), sdnn (trained "
+        "sigma-delta), ann-sd (a ReLU ANN converted to sigma-delta with no retraining)",
+    )
     seeds: list[int] = Field([1, 2, 3, 4, 5], min_length=1)
     steps: int = Field(300_000, ge=1, description="env steps per run (the cap)")
     finishes: int = Field(300, ge=1, description="report the step at this many finishes")

@@ -49,6 +49,7 @@ class EvalJob:
     backend: str = "torch"
     precision: str = "fixed"
     kind: str = "eval"
+    sigma_delta: bool = False  # a ReLU ANN run converted to sigma-delta before it runs
 
 
 WorkerRequest = TrainJob | EvalJob
@@ -105,7 +106,7 @@ def run(request: WorkerRequest) -> int:
         deploy = DeployRequest(
             run_dir, request.backend, request.precision, request.episodes, request.seed, out=out
         )
-        run_eval_exported(run_dir, None, deploy, reporter)
+        run_eval_exported(run_dir, None, deploy, reporter, sigma_delta=request.sigma_delta)
     return 0
 
 

@@ -27,7 +27,11 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "snnkart train --policy ann --set ann.activation=relu",
         "snnkart train --policy sdnn --set sdnn.message_penalty=0.05",
     ),
-    "eval": (f"snnkart eval {_RUN} --episodes 50", f"snnkart eval {_RUN} --backend nir-ref"),
+    "eval": (
+        f"snnkart eval {_RUN} --episodes 50",
+        f"snnkart eval {_RUN} --backend nir-ref",
+        "snnkart eval runs/grid-relu --backend nir-ref --sigma-delta",
+    ),
     "replay": (f"snnkart replay {_RUN} --mode all", f"snnkart replay --compare {_ANN} {_RUN}"),
     "export": (
         f"snnkart export {_RUN} --nir",

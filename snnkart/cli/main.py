@@ -268,6 +268,13 @@ def eval_(
         str | None,
         typer.Option("--track", "-t", help="another track (default: the one trained on)"),
     ] = None,
+    sigma_delta: Annotated[
+        bool,
+        typer.Option(
+            "--sigma-delta",
+            help="with nir-ref/lava-sim: convert a ReLU ANN run to a sigma-delta network first",
+        ),
+    ] = False,
 ) -> None:
     """Evaluate the deterministic policy with frozen normalisation; print and write JSON.
 
@@ -288,12 +295,16 @@ def eval_(
             lambda: DeployRequest(run_dir, backend, precision, episodes, seed, env, track, out)
         )
         guard(
-            lambda: run_eval_exported(run_dir, checkpoint, request, ConsoleReporter()),
+            lambda: run_eval_exported(
+                run_dir, checkpoint, request, ConsoleReporter(), sigma_delta=sigma_delta
+            ),
             _deploy_interrupted(backend),
         )
         return
     if episodes < 1:
         fail(f"--episodes must be >= 1, got {episodes}")
+    if sigma_delta:
+        fail("--sigma-delta converts a run for a spiking backend: add --backend nir-ref")
     if run_dir.suffix == ".nir":
         fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:

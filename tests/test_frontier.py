@@ -1,0 +1,55 @@
+"""The temporal-sparsity frontier study: its plan (every policy kind, the converted ANN trained
+as a ReLU ANN) and the conversion on the fly that its evaluation (and ``snnkart eval
+--sigma-delta``) uses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tiny_runs import train_tiny
+from typer.testing import CliRunner
+
+from snnkart.app.study_eval import converted, eval_backend
+from snnkart.app.study_run import load_study, plan
+from snnkart.cli import app
+from snnkart.contract.deploy_record import DeployRecord
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_frontier_plans_every_kind_on_three_tuning_seeds() -> None:
+    runs = plan(load_study(ROOT / "studies" / "frontier.toml"))
+    assert len(runs) == 99
+    kinds = {(r.policy, r.variant) for r in runs}
+    assert ("snn", "stateful_t1") in kinds and ("sdnn", "p0.3_w32") in kinds
+    assert ("ann-sd", "") in kinds and ("ann", "") in kinds
+    for r in runs:
+        cfg = r.spec.config
+        assert r.seed in (1, 2, 3) and r.track == "small_S"
+        assert (cfg.policy, cfg.ann.activation) == {"ann-sd": ("ann", "relu"),
+                                                    "ann": ("ann", "tanh")}.get(
+            r.policy, (r.policy, "tanh"))  # fmt: skip
+        assert converted(r) == (r.policy == "ann-sd")
+        assert eval_backend(r) == ("torch" if r.policy == "ann" else "nir-ref fixed")
+        assert cfg.sdnn.calibration_target == 0.99
+    stateful = [r for r in runs if r.variant.startswith("stateful")]
+    assert stateful and all(r.spec.config.snn.stateful for r in stateful)
+
+
+def test_eval_converts_a_relu_ann_run_with_sigma_delta(tmp_path: Path) -> None:
+    """``eval RUN --backend nir-ref --sigma-delta`` runs the converted sigma-delta network
+    (its counts are the sigma-delta ones); without ``--sigma-delta`` the ANN is refused, and
+    ``--sigma-delta`` on torch is a one-line error naming the fix."""
+    run = train_tiny(tmp_path / "ann", "grid", "ann", extra_sets=["ann.activation=relu",
+                                                                  "sdnn.calibration_episodes=1"])  # fmt: skip
+    out = tmp_path / "eval"
+    result = CliRunner().invoke(app, ["eval", str(run), "--backend", "nir-ref", "--episodes",
+                                      "1", "--sigma-delta", "--out", str(out)])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    record = DeployRecord.read(out / "deploy.json")
+    assert record.counts.sigma_delta is not None and record.counts.env_steps > 0
+    plain = CliRunner().invoke(app, ["eval", str(run), "--backend", "nir-ref", "--episodes",
+                                     "1", "--out", str(tmp_path / "plain")])  # fmt: skip
+    assert plain.exit_code != 0
+    torch_eval = CliRunner().invoke(app, ["eval", str(run), "--sigma-delta"])
+    assert torch_eval.exit_code != 0 and "--backend nir-ref" in torch_eval.output
