@@ -7,14 +7,14 @@ step by step); prices from hardware profiles; every energy in ``report.json`` is
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
+from snnkart.app.report_sweep import sweep_section
 from snnkart.app.reporter import Reporter
 from snnkart.app.sanafe_report import sanafe_section
 from snnkart.contract.deploy_record import DeployRecord
-from snnkart.contract.records import Reading, RecordError, from_data, to_data
+from snnkart.contract.records import RecordError, to_data
 from snnkart.energy.break_even import break_even
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import (
@@ -35,7 +35,6 @@ from snnkart.energy.profiles import (
 )
 from snnkart.energy.uncertainty import joint, method
 from snnkart.errors import ReportError
-from snnkart.report.study_record import STUDY, StudyRecord
 
 REPORT_SCHEMA = "snnkart/report/v2"
 """v2: each comparison's ``uncertainty`` and its break-even in T and width; the top-level
@@ -234,70 +233,6 @@ def _per_return(energy: float, mean_return: float) -> float | None:
     return energy / mean_return if mean_return > 0 else None
 
 
-def _read_sweep(path: Path) -> StudyRecord:
-    """A study record (``snnkart study``'s ``study.json``), refused with a one-line reason."""
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ReportError(f"--sweep {path}: not a readable study.json ({exc})") from exc
-    if isinstance(data, dict) and data.get("benchmark") == "bench_sparsity":
-        raise ReportError(
-            f"--sweep {path}: written by bench_sparsity, an older snnkart; run "
-            "`snnkart study studies/sparsity.toml` again and pass its study.json"
-        )
-    if not isinstance(data, dict) or not str(data.get("schema", "")).startswith(
-        STUDY.tag_of(0)[:-1]
-    ):
-        schema = data.get("schema") if isinstance(data, dict) else None
-        raise ReportError(
-            f"--sweep {path}: not a study.json (schema {schema!r}); pass the "
-            "study.json of `snnkart study`"
-        )
-    source = f"--sweep {path}"
-    try:  # the JSON parsed above, read as the record (not written out and parsed again)
-        return from_data(StudyRecord, data, Reading(STUDY, source, STUDY.version_of(data, source)))
-    except RecordError as exc:
-        raise ReportError(str(exc)) from None
-
-
-def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
-    """A study's SNN runs, priced: each run's energy per inference on ``chip`` (host work on
-    ``host``) from the counts of its evaluation on the reference, and the 64-64 ANN's on each
-    digital profile. A run's point is its variant (its cell without variants)."""
-    record = _read_sweep(path)
-    if record.schema == STUDY.tag_of(1):
-        raise ReportError(
-            f"--sweep {path}: written by an older snnkart (no counts per env step); run "
-            "`snnkart study` with its config again (runs and evaluations are reused)"
-        )
-    runs = [r for r in record.runs if r.eval_counts_per_step is not None]
-    if not runs:
-        raise ReportError(
-            f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "
-            "run a study of spiking policies, e.g. studies/sparsity.toml"
-        )
-    points = []
-    for run in runs:
-        counts = run.eval_counts_per_step
-        assert counts is not None
-        points.append({
-            "point": run.variant or f"{run.env}-{run.policy}", "seed": run.seed,
-            "num_steps": counts.num_steps, "sizes": counts.sizes,
-            "success_rate": run.eval_success_rate,
-            "energy_pj": total(snn_terms(SnnCounts.of_sweep(counts), chip, host)),
-        })  # fmt: skip
-    first = runs[0].eval_counts_per_step
-    assert first is not None
-    obs_dim = first.network.n_in // (first.population or 1)
-    ann = AnnCounts((obs_dim, 64, 64, first.network.n_out))
-    ann_pj = {f"64-64 on {d.name}": total(ann_terms(ann, d)) for d in digital}
-    envs = sorted({r.env for r in runs})
-    commit = (record.machine or {}).get("commit")
-    return {"file": str(path), "env": ", ".join(envs), "commit": commit,
-            "profile": chip.name, "host_profile": host.name, "points": points,
-            "ann_64_64_pj": ann_pj}  # fmt: skip
-
-
 def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
     """Where the counts come from: the deployment, its env and track, and its parity."""
     return {
@@ -368,7 +303,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         ],
         "sweep": None
         if sweep is None
-        else _sweep(sweep, chips[0], host_profile or _memory_first(digital)[0], digital),
+        else sweep_section(sweep, chips[0], host_profile or _memory_first(digital)[0], digital),
         "sanafe": sanafe_section(record, deploy_dir, snn),  # the second chip model
     }
 
