@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from snnkart.app.report_sd import sd_report, stateful_note
 from snnkart.app.report_sweep import sweep_section
 from snnkart.app.reporter import Reporter
 from snnkart.app.sanafe_report import sanafe_section
@@ -36,9 +37,11 @@ from snnkart.energy.profiles import (
 from snnkart.energy.uncertainty import joint, method
 from snnkart.errors import ReportError
 
-REPORT_SCHEMA = "snnkart/report/v2"
+REPORT_SCHEMA = "snnkart/report/v3"
 """v2: each comparison's ``uncertainty`` and its break-even in T and width; the top-level
-``uncertainty`` says how the prices were sampled."""
+``uncertainty`` says how the prices were sampled. v3: a sigma-delta deployment's report
+(``kind: "sigma-delta"``, :mod:`snnkart.app.report_sd`); a stateful LIF deployment's ``state``;
+a LIF report otherwise as in v2."""
 DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
@@ -256,6 +259,16 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
     """Everything the report says, as one JSON-ready record."""
     record = read_deploy(deploy_dir)
     chips, digital, host_profile = _profiles(profiles, host)
+    fair = host_profile or _memory_first(digital)[0]
+    if record.counts.sigma_delta is not None:
+        if ann_dir is not None:
+            raise ReportError(
+                "--ann: a sigma-delta deployment is compared with the ANN of its own shape "
+                "(fp32 and int8, memory-inclusive); run snnkart report without --ann"
+            )
+        report = sd_report(record, deploy_dir, chips, host_profile, DRIVES)
+        report["sweep"] = None if sweep is None else sweep_section(sweep, chips[0], fair, digital)
+        return {"schema": REPORT_SCHEMA, **report}
     snn = SnnCounts.of_deploy(record)
     net = snn.net
     # the ANN baseline takes the observation itself, not a population code of it
@@ -267,7 +280,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
     if ann_dir is not None:
         anns["run"] = _ann_run(ann_dir, record)
     success = record.summary.success_rate
-    return {
+    report = {
         "schema": REPORT_SCHEMA,
         "deploy": _deploy_section(record, deploy_dir, snn),
         "drives": success >= DRIVES,
@@ -301,11 +314,11 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
             for c in chips
             for d in _memory_first(digital)
         ],
-        "sweep": None
-        if sweep is None
-        else sweep_section(sweep, chips[0], host_profile or _memory_first(digital)[0], digital),
+        "sweep": None if sweep is None else sweep_section(sweep, chips[0], fair, digital),
         "sanafe": sanafe_section(record, deploy_dir, snn),  # the second chip model
     }
+    state = stateful_note(record)
+    return report if state is None else {**report, "state": state}
 
 
 def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
@@ -318,7 +331,8 @@ def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | Non
     with reporter.progress("report", 3) as task:
         report = build_report(deploy_dir, ann_dir, profiles, host, sweep)
         task.advance()
-        trace = _trace(report, deploy_dir, step, reporter)
+        lif = report.get("kind") is None  # the raster figure is a LIF policy's
+        trace = _trace(report, deploy_dir, step, reporter) if lif else None
         task.advance()
         paths = write_report(report, out, trace)
         task.advance()

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from snnkart.cli.console import ConsoleReporter, print_headline
+from snnkart.cli.console import ConsoleReporter, print_headline, print_sd_answer
 from snnkart.cli.guard import ForceOpt, guard, refuse_other_files
 
 
@@ -56,7 +56,13 @@ def report(
     record = guard(
         lambda: run_report(deploy_dir, ann, profile, out, reporter, host_profile, sweep, step)
     )
-    print_headline(record, headline(record))
+    if record.get("kind") == "sigma-delta":
+        from snnkart.report.first_screen import sd_sentence
+        from snnkart.report.sd_document import chip_rows
+
+        print_sd_answer(record, sd_sentence(record), chip_rows(record))
+    else:
+        print_headline(record, headline(record))
 
 
 plot_app = typer.Typer(help="Figures of a deployed policy.", no_args_is_help=True)

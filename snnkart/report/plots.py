@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+SD_PART_COLOURS = {"messages": "#bcbd22"}
+"""A sigma-delta inference's part the LIF breakdown has not (its graded messages)."""
 PART_COLOURS = {
     "synaptic ops": "#1f77b4",
     "neuron updates": "#ff7f0e",
@@ -53,8 +55,10 @@ def firing_rates(rates: Sequence[float], sizes: Sequence[int]) -> bytes:
     return _png(fig)
 
 
-def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
-    """Left: energy per inference per (network, profile), log scale; right: its parts (%)."""
+def breakdown(energies: dict[str, dict[str, float]],
+              colours: dict[str, str] = PART_COLOURS) -> bytes:  # fmt: skip
+    """Left: energy per inference per (network, profile), log scale (an ``SNN ...`` label in
+    red); right: its parts (%), one colour per part of ``colours``."""
     fig, axes = _figure(10.0, 0.45 * len(energies) + 1.6, ncols=2)
     left, right = axes[0]
     labels = list(energies)
@@ -70,7 +74,7 @@ def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
     for yi, t in zip(y, totals, strict=True):
         left.text(t / 1000, yi, f" {t / 1000:.3g}", va="center", fontsize=8)
     start = np.zeros(len(labels))
-    for part, colour in PART_COLOURS.items():
+    for part, colour in colours.items():
         share = np.array([100 * p.get(part, 0.0) / max(t, 1e-30)
                           for p, t in zip(energies.values(), totals, strict=True)])  # fmt: skip
         right.barh(y, share, left=start, color=colour, label=part)
@@ -83,7 +87,7 @@ def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
         *right.get_legend_handles_labels(),
         fontsize=7,
         loc="lower center",
-        ncol=len(PART_COLOURS),
+        ncol=len(colours),
         frameon=False,
     )  # below the bars, covering none
     fig.tight_layout(rect=(0, 0.07, 1, 1))
