@@ -152,11 +152,16 @@ def _density_curve(ax: Any, curve: Sequence[tuple[float, float]], break_even: fl
     ax.set_ylabel("SNN / ANN energy")
 
 
+MARKERS = {"dense LIF": "o", "sparse LIF": "s", "stateful LIF": "D",
+           "sigma-delta trained": "^", "ANN converted": "v"}
+"""One marker per policy kind of a sweep's runs (:func:`snnkart.app.report_sweep.policy_kind`)."""
+
+
 def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile: str,
              title: str) -> bytes:  # fmt: skip
-    """Left: success rate against energy per inference (one dot per run of the sweep, the
-    ANN's energy as vertical lines); right: energy per inference against T. ``title`` says
-    whose runs these are."""
+    """Left: success rate against energy per inference (one dot per run of the sweep, its
+    marker its policy kind, the ANN's energy as vertical lines); right: energy per inference
+    against T (the ANN's as horizontal lines). ``title`` says whose runs these are."""
     fig, axes = _figure(10.0, 3.8, ncols=2)
     left, right = axes[0]
     names = sorted({p["point"] for p in points})
@@ -166,10 +171,15 @@ def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile
     for k, name in enumerate(names):
         runs = [p for p in points if p["point"] == name]
         colour = cmap(k % 10)
-        left.scatter([r["energy_pj"] / 1000 for r in runs], [100 * r["success_rate"] for r in runs],
-                     color=colour, label=name, s=22)  # fmt: skip
-        right.scatter([r["num_steps"] for r in runs], [r["energy_pj"] / 1000 for r in runs],
-                      color=colour, s=22)  # fmt: skip
+        for kind in dict.fromkeys(r.get("kind", "dense LIF") for r in runs):
+            mine = [r for r in runs if r.get("kind", "dense LIF") == kind]
+            label = name if kind == "dense LIF" else f"{name} ({kind})"
+            marker = MARKERS.get(kind, "o")
+            left.scatter([r["energy_pj"] / 1000 for r in mine],
+                         [100 * r["success_rate"] for r in mine], color=colour, label=label,
+                         s=22, marker=marker)  # fmt: skip
+            right.scatter([r["num_steps"] for r in mine], [r["energy_pj"] / 1000 for r in mine],
+                          color=colour, s=22, marker=marker)  # fmt: skip
     for (label, pj), style in zip(ann_pj.items(), ("--", ":", "-."), strict=False):
         left.axvline(pj / 1000, color="black", linestyle=style, linewidth=1, label=f"ANN {label}")
         right.axhline(pj / 1000, color="black", linestyle=style, linewidth=1)
