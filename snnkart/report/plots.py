@@ -152,8 +152,13 @@ def _density_curve(ax: Any, curve: Sequence[tuple[float, float]], break_even: fl
     ax.set_ylabel("SNN / ANN energy")
 
 
-MARKERS = {"dense LIF": "o", "sparse LIF": "s", "stateful LIF": "D",
-           "sigma-delta trained": "^", "ANN converted": "v"}
+MARKERS = {
+    "dense LIF": "o",
+    "sparse LIF": "s",
+    "stateful LIF": "D",
+    "sigma-delta trained": "^",
+    "ANN converted": "v",
+}
 """One marker per policy kind of a sweep's runs (:func:`snnkart.app.report_sweep.policy_kind`)."""
 
 
