@@ -254,6 +254,21 @@ def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> d
     }
 
 
+def _anns(snn: SnnCounts, record: DeployRecord,
+          ann_dir: Path | None) -> dict[str, tuple[AnnCounts, dict[str, Any] | None]]:  # fmt: skip
+    """The ANN baselines: the same widths (taking the observation itself, not a population
+    code of it), and the user's ANN run if given."""
+    net = snn.net
+    widths = (net.obs_dim, *net.sizes, net.n_out) if net.readout else (net.obs_dim, *net.sizes)
+    anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]] = {
+        "same_width": (AnnCounts(widths, net.action_mode,
+                                 f"ANN {'-'.join(map(str, net.sizes))} (same widths)"), None),
+    }  # fmt: skip
+    if ann_dir is not None:
+        anns["run"] = _ann_run(ann_dir, record)
+    return anns
+
+
 def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
                  host: str | None = None, sweep: Path | None = None) -> dict[str, Any]:  # fmt: skip
     """Everything the report says, as one JSON-ready record."""
@@ -271,14 +286,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
         return {"schema": REPORT_SCHEMA, **report}
     snn = SnnCounts.of_deploy(record)
     net = snn.net
-    # the ANN baseline takes the observation itself, not a population code of it
-    widths = (net.obs_dim, *net.sizes, net.n_out) if net.readout else (net.obs_dim, *net.sizes)
-    anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]] = {
-        "same_width": (AnnCounts(widths, net.action_mode,
-                                 f"ANN {'-'.join(map(str, net.sizes))} (same widths)"), None),
-    }  # fmt: skip
-    if ann_dir is not None:
-        anns["run"] = _ann_run(ann_dir, record)
+    anns = _anns(snn, record, ann_dir)
     success = record.summary.success_rate
     report = {
         "schema": REPORT_SCHEMA,
