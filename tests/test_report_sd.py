@@ -165,3 +165,39 @@ def test_the_sweep_prices_sigma_delta_runs_as_their_own_kind(
 
     write_report(report, tmp_path)
     assert (tmp_path / "tradeoff.png").stat().st_size > 10_000
+
+
+def test_the_report_validates_against_its_schema(deployed: Path) -> None:
+    import jsonschema
+
+    schema = json.loads((ROOT / "snnkart/report/report.schema.json").read_text())
+    report = json.loads((deployed / "report.json").read_text())
+    jsonschema.validate(report, schema)
+    with pytest.raises(jsonschema.ValidationError, match="'goal' is a required property"):
+        jsonschema.validate({k: v for k, v in report.items() if k != "goal"}, schema)
+
+
+def test_sanafe_checks_the_goal_with_its_chip_energy_plus_host_and_link(deployed: Path) -> None:
+    from snnkart.energy.sanafe_model import sanafe_python
+
+    if sanafe_python() is None:
+        pytest.skip("optional: SANA-FE is not installed (pip install 'snnkart[sanafe]')")
+    report = build_report(deployed, None, None, sanafe=True)
+    section = report["sanafe"]
+    counts = SigmaDeltaCounts.of_deploy(DeployRecord.read(deployed / "deploy.json"))
+    replay = section["per_inference"]["counts"]
+    assert replay["synaptic_events"] == pytest.approx(sum(counts.synaptic_events[:-1]), rel=1e-9)
+    assert replay["packets"] == pytest.approx(sum(counts.messages[:-1]), rel=1e-9)
+    loihi1 = load_profile("loihi1")
+    energy = {}
+    for b in (goal.FP32, goal.INT8):
+        off = [t for t in sd_terms(counts, loihi1, load_profile(b))
+               if t.part in ("host link", "host compute", "memory")]  # fmt: skip
+        energy[b] = section["per_inference"]["chip_pj"] + total(off)
+    assert section["energy_pj"] == pytest.approx(energy, rel=1e-12)
+    ann = AnnCounts((counts.n_in, *counts.sizes, counts.n_out), counts.action_mode)
+    fp32, int8 = load_profile(goal.FP32), load_profile(goal.INT8)
+    direct = goal.decide([goal.priced_policy(counts, load_profile(c), b, ann)
+                          for c in ("loihi2", "loihi1") for b in (fp32, int8)], energy)  # fmt: skip
+    assert report["goal"]["sanafe"] == _json(direct["sanafe"])
+    assert report["goal"]["verdict"] == direct["verdict"]

@@ -270,7 +270,8 @@ def _anns(snn: SnnCounts, record: DeployRecord,
 
 
 def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
-                 host: str | None = None, sweep: Path | None = None) -> dict[str, Any]:  # fmt: skip
+                 host: str | None = None, sweep: Path | None = None,
+                 sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
     """Everything the report says, as one JSON-ready record."""
     record = read_deploy(deploy_dir)
     chips, digital, host_profile = _profiles(profiles, host)
@@ -281,7 +282,7 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
                 "--ann: a sigma-delta deployment is compared with the ANN of its own shape "
                 "(fp32 and int8, memory-inclusive); run snnkart report without --ann"
             )
-        report = sd_report(record, deploy_dir, chips, host_profile, DRIVES)
+        report = sd_report(record, deploy_dir, chips, host_profile, DRIVES, sanafe)
         report["sweep"] = None if sweep is None else sweep_section(sweep, chips[0], fair, digital)
         return {"schema": REPORT_SCHEMA, **report}
     snn = SnnCounts.of_deploy(record)
@@ -331,13 +332,14 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
 
 def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
                out: Path | None, reporter: Reporter, host: str | None = None,
-               sweep: Path | None = None, step: int = 0) -> dict[str, Any]:  # fmt: skip
+               sweep: Path | None = None, step: int = 0,
+               sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
     """Build the report and write ``report.json``, ``report.md`` and ``report.html``."""
     from snnkart.report.document import write_report
 
     out = out or (deploy_dir if deploy_dir.is_dir() else deploy_dir.parent)
     with reporter.progress("report", 3) as task:
-        report = build_report(deploy_dir, ann_dir, profiles, host, sweep)
+        report = build_report(deploy_dir, ann_dir, profiles, host, sweep, sanafe)
         task.advance()
         lif = report.get("kind") is None  # the raster figure is a LIF policy's
         trace = _trace(report, deploy_dir, step, reporter) if lif else None

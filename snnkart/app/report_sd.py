@@ -67,7 +67,8 @@ def chip_pricing(counts: SigmaDeltaCounts, chip: Profile, baselines: list[Profil
     }  # fmt: skip
 
 
-def decide_goal(counts: SigmaDeltaCounts, sanafe_pj: float | None = None) -> dict[str, Any]:
+def decide_goal(counts: SigmaDeltaCounts,
+                sanafe_pj: dict[str, float] | None = None) -> dict[str, Any]:  # fmt: skip
     """The goal's decision on loihi2 (loihi1 named as a proxy), against both baselines."""
     ann = same_shape_ann(counts)
     priced = [goal.priced_policy(counts, load_profile(c), load_profile(b), ann)
@@ -84,10 +85,17 @@ def _deploy(record: DeployRecord, deploy_dir: Path) -> dict[str, Any]:
 
 
 def sd_report(record: DeployRecord, deploy_dir: Path, chips: list[Profile],
-              host: Profile | None, drives: float) -> dict[str, Any]:  # fmt: skip
+              host: Profile | None, drives: float, sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
     """A sigma-delta deployment's report (module docstring), without the schema tag and the
-    sweep (the caller adds them)."""
+    sweep (the caller adds them); with ``sanafe``, SANA-FE's replay and its check of the goal."""
     counts = SigmaDeltaCounts.of_deploy(record)
+    section: dict[str, Any] = {"available": False, "reason": "not asked for: run snnkart "
+                               "report with --sanafe (needs the sanafe extra)"}  # fmt: skip
+    sanafe_pj = None
+    if sanafe:
+        from snnkart.app.sanafe_sd_report import sanafe_sd
+
+        section, sanafe_pj = sanafe_sd(record, counts, list(BASELINES))
     baselines = [load_profile(b) for b in BASELINES]
     ann = same_shape_ann(counts)
     s = record.summary
@@ -111,10 +119,9 @@ def sd_report(record: DeployRecord, deploy_dir: Path, chips: list[Profile],
         "host_profile": host.name if host else "the baseline it is compared with",
         "profiles": {p.name: p.describe() for p in [*chips, *baselines, *([host] if host else [])]},
         "pricing": [chip_pricing(counts, c, baselines, host) for c in chips],
-        "goal": decide_goal(counts),
+        "goal": decide_goal(counts, sanafe_pj),
         "uncertainty": method(),
-        "sanafe": {"available": False, "reason": "SANA-FE's sigma-delta replay "
-                   "(snnkart.energy.sanafe_sd) is not run by snnkart report yet"},
+        "sanafe": section,
     }  # fmt: skip
 
 

@@ -39,6 +39,14 @@ def report(
         ),
     ] = None,
     step: Annotated[int, typer.Option(help="env step shown in the raster figure")] = 20,
+    sanafe: Annotated[
+        bool,
+        typer.Option(
+            "--sanafe",
+            help="a sigma-delta deployment: replay its messages on SANA-FE's Loihi model and "
+            "check the goal there too (a LIF deployment runs SANA-FE whenever it is installed)",
+        ),
+    ] = False,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="directory (default: the deployment's)")
     ] = None,
@@ -54,7 +62,9 @@ def report(
 
     reporter = ConsoleReporter()
     record = guard(
-        lambda: run_report(deploy_dir, ann, profile, out, reporter, host_profile, sweep, step)
+        lambda: run_report(
+            deploy_dir, ann, profile, out, reporter, host_profile, sweep, step, sanafe
+        )
     )
     if record.get("kind") == "sigma-delta":
         from snnkart.report.first_screen import sd_sentence
