@@ -201,3 +201,13 @@ def test_sanafe_checks_the_goal_with_its_chip_energy_plus_host_and_link(deployed
                           for c in ("loihi2", "loihi1") for b in (fp32, int8)], energy)  # fmt: skip
     assert report["goal"]["sanafe"] == _json(direct["sanafe"])
     assert report["goal"]["verdict"] == direct["verdict"]
+
+
+def test_a_stateful_lif_report_page_says_so() -> None:
+    from snnkart.app.report_sd import STATEFUL
+    from snnkart.report.document import markdown
+
+    report = json.loads((ROOT / "docs/energy/report.json").read_text())
+    assert "membranes persist" not in markdown(report, [])
+    page = markdown({**report, "state": {"state_persists": True, "note": STATEFUL}}, [])
+    assert f"Stateful: {STATEFUL}." in page

@@ -241,6 +241,7 @@ def _deployment(report: dict[str, Any]) -> str:
         f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). Network "
         f"{net['n_in']} -> {net['sizes']} -> {net['n_out']}, T = {net['num_steps']}. Host work "
         f"priced on {report['host_profile']}. {_parity(d)}{_int8(report)}"
+        + (f" Stateful: {report['state']['note']}." if report.get("state") else "")
     )
 
 

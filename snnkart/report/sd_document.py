@@ -82,9 +82,12 @@ def goal_lines(report: dict[str, Any]) -> list[str]:
                      f"; {checks}")  # fmt: skip
         if chip["in_the_way"]:
             lines.append(f"In the way: {chip['in_the_way']['text']}.")
-    lines.append("SANA-FE: not run." if g["sanafe"] is None else
-                 f"SANA-FE's Loihi model: {'holds' if g['sanafe']['holds'] else 'does not hold'}.")  # fmt: skip
-    return lines
+    if g["sanafe"] is None:
+        return [*lines, "SANA-FE: not run (snnkart report --sanafe)."]
+    checks = "; ".join(f"{_nj(c['snn_pj'])} against {c['factor']:g}x the {c['baseline']} ANN's "
+                       f"5th percentile {_nj(c['ann_pj']['p05'])}" for c in g["sanafe"]["checks"])  # fmt: skip
+    return [*lines, f"SANA-FE's Loihi model (chip + host and link): "
+            f"{'holds' if g['sanafe']['holds'] else 'does not hold'}; {checks}."]  # fmt: skip
 
 
 def _deployment(report: dict[str, Any]) -> str:
