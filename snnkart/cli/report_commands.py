@@ -4,7 +4,7 @@ policy."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -55,7 +55,7 @@ def report(
     """Energy per inference and per episode of the deployed spiking policy against the ANN
     baseline on hardware profiles, with the task performance of both: report.json, .md, .html."""
     from snnkart.app.report import run_report
-    from snnkart.report.document import REPORT_FILES, headline
+    from snnkart.report.document import REPORT_FILES
 
     if out is not None:  # its default, the deployment's directory, holds the deployment too
         refuse_other_files(out, {*REPORT_FILES, "deploy.json"}, force)
@@ -66,6 +66,13 @@ def report(
             deploy_dir, ann, profile, out, reporter, host_profile, sweep, step, sanafe
         )
     )
+    _print(record)
+
+
+def _print(record: dict[str, Any]) -> None:
+    """The report's headline: a sigma-delta report's answer, else the LIF energy table."""
+    from snnkart.report.document import headline
+
     if record.get("kind") == "sigma-delta":
         from snnkart.report.first_screen import sd_sentence
         from snnkart.report.sd_document import chip_rows
