@@ -211,3 +211,22 @@ def test_a_stateful_lif_report_page_says_so() -> None:
     assert "membranes persist" not in markdown(report, [])
     page = markdown({**report, "state": {"state_persists": True, "note": STATEFUL}}, [])
     assert f"Stateful: {STATEFUL}." in page
+
+
+def test_a_stateful_lif_deployments_report_json_has_the_state(tmp_path: Path) -> None:
+    """The committed LIF deployment, its manifest marked stateful: report.json gains ``state``;
+    unmarked it has none (a LIF report as before)."""
+    src = ROOT / "tests/data/policies/grid-snn-nir-8ddd6dd"
+    for persists in (False, True):
+        where = tmp_path / f"p{int(persists)}"
+        (where / "deploy").mkdir(parents=True)
+        manifest = json.loads((src / "policy.manifest.json").read_text())
+        (where / "policy.manifest.json").write_text(
+            json.dumps({**manifest, "state_persists": persists}))  # fmt: skip
+        deploy = json.loads((DATA / "deploy-nir-ref-fixed.json").read_text())
+        deploy["nir_file"] = str(where / "policy.nir")
+        (where / "deploy" / "deploy.json").write_text(json.dumps(deploy))
+        report = build_report(where / "deploy", None, ["loihi1", goal.FP32])
+        assert ("state" in report) == persists
+        if persists:
+            assert "membranes persist" in report["state"]["note"]
