@@ -230,3 +230,13 @@ def test_a_stateful_lif_deployments_report_json_has_the_state(tmp_path: Path) ->
         assert ("state" in report) == persists
         if persists:
             assert "membranes persist" in report["state"]["note"]
+
+
+def test_each_policy_kind_has_its_own_marker() -> None:
+    from snnkart.app.report_sweep import KINDS, policy_kind
+    from snnkart.report.plots import MARKERS
+
+    assert set(MARKERS) == set(KINDS) and len(set(MARKERS.values())) == len(KINDS)
+    runs = [("snn", "t4_r0"), ("snn", "t4_r0.05"), ("snn", "stateful_t4"), ("sdnn", ""),
+            ("ann-sd", "")]  # fmt: skip
+    assert [policy_kind(p, v) for p, v in runs] == list(KINDS)
