@@ -332,6 +332,16 @@ def test_a_v1_study_loads_without_the_v2_keys() -> None:
                for r in record.runs)  # fmt: skip
     assert all(c.eval_synops_per_step is None for c in record.cells)
     current = json.loads((DATA / "study.json").read_text())
-    assert current["schema"] == "snnkart/study/v2"  # what today's snnkart writes
+    assert current["schema"] == "snnkart/study/v3"  # what today's snnkart writes
     assert set(current["runs"][0]) - set(json.loads(old.read_text())["runs"][0]) == {
         "eval_mean_lap_time", "eval_counts_per_step"}  # fmt: skip
+
+
+def test_a_v2_study_loads_without_sigma_delta_counts() -> None:
+    """``study.json`` v2 (before sigma-delta runs) still loads, every run without
+    ``sigma_delta_counts``; v3 writes that key only for a run that has it."""
+    old = DATA / "study-v2.json"
+    assert json.loads(old.read_text())["schema"] == "snnkart/study/v2"
+    record = StudyRecord.read(old)
+    assert record.runs and all(r.sigma_delta_counts is None for r in record.runs)
+    assert "sigma_delta_counts" not in to_data(record)["runs"][0]

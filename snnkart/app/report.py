@@ -7,14 +7,15 @@ step by step); prices from hardware profiles; every energy in ``report.json`` is
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
+from snnkart.app.report_sd import sd_report, stateful_note
+from snnkart.app.report_sweep import sweep_section
 from snnkart.app.reporter import Reporter
 from snnkart.app.sanafe_report import sanafe_section
 from snnkart.contract.deploy_record import DeployRecord
-from snnkart.contract.records import Reading, RecordError, from_data, to_data
+from snnkart.contract.records import RecordError, to_data
 from snnkart.energy.break_even import break_even
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import (
@@ -35,11 +36,12 @@ from snnkart.energy.profiles import (
 )
 from snnkart.energy.uncertainty import joint, method
 from snnkart.errors import ReportError
-from snnkart.report.study_record import STUDY, StudyRecord
 
-REPORT_SCHEMA = "snnkart/report/v2"
+REPORT_SCHEMA = "snnkart/report/v3"
 """v2: each comparison's ``uncertainty`` and its break-even in T and width; the top-level
-``uncertainty`` says how the prices were sampled."""
+``uncertainty`` says how the prices were sampled. v3: a sigma-delta deployment's report
+(``kind: "sigma-delta"``, :mod:`snnkart.app.report_sd`); a stateful LIF deployment's ``state``;
+a LIF report otherwise as in v2."""
 DRIVES = 0.8
 """Below this success rate the SNN does not drive, and the report says so before any energy."""
 
@@ -234,70 +236,6 @@ def _per_return(energy: float, mean_return: float) -> float | None:
     return energy / mean_return if mean_return > 0 else None
 
 
-def _read_sweep(path: Path) -> StudyRecord:
-    """A study record (``snnkart study``'s ``study.json``), refused with a one-line reason."""
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise ReportError(f"--sweep {path}: not a readable study.json ({exc})") from exc
-    if isinstance(data, dict) and data.get("benchmark") == "bench_sparsity":
-        raise ReportError(
-            f"--sweep {path}: written by bench_sparsity, an older snnkart; run "
-            "`snnkart study studies/sparsity.toml` again and pass its study.json"
-        )
-    if not isinstance(data, dict) or not str(data.get("schema", "")).startswith(
-        STUDY.tag_of(0)[:-1]
-    ):
-        schema = data.get("schema") if isinstance(data, dict) else None
-        raise ReportError(
-            f"--sweep {path}: not a study.json (schema {schema!r}); pass the "
-            "study.json of `snnkart study`"
-        )
-    source = f"--sweep {path}"
-    try:  # the JSON parsed above, read as the record (not written out and parsed again)
-        return from_data(StudyRecord, data, Reading(STUDY, source, STUDY.version_of(data, source)))
-    except RecordError as exc:
-        raise ReportError(str(exc)) from None
-
-
-def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> dict[str, Any]:
-    """A study's SNN runs, priced: each run's energy per inference on ``chip`` (host work on
-    ``host``) from the counts of its evaluation on the reference, and the 64-64 ANN's on each
-    digital profile. A run's point is its variant (its cell without variants)."""
-    record = _read_sweep(path)
-    if record.schema == STUDY.tag_of(1):
-        raise ReportError(
-            f"--sweep {path}: written by an older snnkart (no counts per env step); run "
-            "`snnkart study` with its config again (runs and evaluations are reused)"
-        )
-    runs = [r for r in record.runs if r.eval_counts_per_step is not None]
-    if not runs:
-        raise ReportError(
-            f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "
-            "run a study of spiking policies, e.g. studies/sparsity.toml"
-        )
-    points = []
-    for run in runs:
-        counts = run.eval_counts_per_step
-        assert counts is not None
-        points.append({
-            "point": run.variant or f"{run.env}-{run.policy}", "seed": run.seed,
-            "num_steps": counts.num_steps, "sizes": counts.sizes,
-            "success_rate": run.eval_success_rate,
-            "energy_pj": total(snn_terms(SnnCounts.of_sweep(counts), chip, host)),
-        })  # fmt: skip
-    first = runs[0].eval_counts_per_step
-    assert first is not None
-    obs_dim = first.network.n_in // (first.population or 1)
-    ann = AnnCounts((obs_dim, 64, 64, first.network.n_out))
-    ann_pj = {f"64-64 on {d.name}": total(ann_terms(ann, d)) for d in digital}
-    envs = sorted({r.env for r in runs})
-    commit = (record.machine or {}).get("commit")
-    return {"file": str(path), "env": ", ".join(envs), "commit": commit,
-            "profile": chip.name, "host_profile": host.name, "points": points,
-            "ann_64_64_pj": ann_pj}  # fmt: skip
-
-
 def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
     """Where the counts come from: the deployment, its env and track, and its parity."""
     return {
@@ -316,14 +254,11 @@ def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> d
     }
 
 
-def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
-                 host: str | None = None, sweep: Path | None = None) -> dict[str, Any]:  # fmt: skip
-    """Everything the report says, as one JSON-ready record."""
-    record = read_deploy(deploy_dir)
-    chips, digital, host_profile = _profiles(profiles, host)
-    snn = SnnCounts.of_deploy(record)
+def _anns(snn: SnnCounts, record: DeployRecord,
+          ann_dir: Path | None) -> dict[str, tuple[AnnCounts, dict[str, Any] | None]]:  # fmt: skip
+    """The ANN baselines: the same widths (taking the observation itself, not a population
+    code of it), and the user's ANN run if given."""
     net = snn.net
-    # the ANN baseline takes the observation itself, not a population code of it
     widths = (net.obs_dim, *net.sizes, net.n_out) if net.readout else (net.obs_dim, *net.sizes)
     anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]] = {
         "same_width": (AnnCounts(widths, net.action_mode,
@@ -331,8 +266,30 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
     }  # fmt: skip
     if ann_dir is not None:
         anns["run"] = _ann_run(ann_dir, record)
+    return anns
+
+
+def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
+                 host: str | None = None, sweep: Path | None = None,
+                 sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
+    """Everything the report says, as one JSON-ready record."""
+    record = read_deploy(deploy_dir)
+    chips, digital, host_profile = _profiles(profiles, host)
+    fair = host_profile or _memory_first(digital)[0]
+    if record.counts.sigma_delta is not None:
+        if ann_dir is not None:
+            raise ReportError(
+                "--ann: a sigma-delta deployment is compared with the ANN of its own shape "
+                "(fp32 and int8, memory-inclusive); run snnkart report without --ann"
+            )
+        report = sd_report(record, deploy_dir, chips, host_profile, DRIVES, sanafe)
+        report["sweep"] = None if sweep is None else sweep_section(sweep, chips[0], fair, digital)
+        return {"schema": REPORT_SCHEMA, **report}
+    snn = SnnCounts.of_deploy(record)
+    net = snn.net
+    anns = _anns(snn, record, ann_dir)
     success = record.summary.success_rate
-    return {
+    report = {
         "schema": REPORT_SCHEMA,
         "deploy": _deploy_section(record, deploy_dir, snn),
         "drives": success >= DRIVES,
@@ -366,24 +323,26 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
             for c in chips
             for d in _memory_first(digital)
         ],
-        "sweep": None
-        if sweep is None
-        else _sweep(sweep, chips[0], host_profile or _memory_first(digital)[0], digital),
+        "sweep": None if sweep is None else sweep_section(sweep, chips[0], fair, digital),
         "sanafe": sanafe_section(record, deploy_dir, snn),  # the second chip model
     }
+    state = stateful_note(record)
+    return report if state is None else {**report, "state": state}
 
 
 def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
                out: Path | None, reporter: Reporter, host: str | None = None,
-               sweep: Path | None = None, step: int = 0) -> dict[str, Any]:  # fmt: skip
+               sweep: Path | None = None, step: int = 0,
+               sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
     """Build the report and write ``report.json``, ``report.md`` and ``report.html``."""
     from snnkart.report.document import write_report
 
     out = out or (deploy_dir if deploy_dir.is_dir() else deploy_dir.parent)
     with reporter.progress("report", 3) as task:
-        report = build_report(deploy_dir, ann_dir, profiles, host, sweep)
+        report = build_report(deploy_dir, ann_dir, profiles, host, sweep, sanafe)
         task.advance()
-        trace = _trace(report, deploy_dir, step, reporter)
+        lif = report.get("kind") is None  # the raster figure is a LIF policy's
+        trace = _trace(report, deploy_dir, step, reporter) if lif else None
         task.advance()
         paths = write_report(report, out, trace)
         task.advance()

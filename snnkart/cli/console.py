@@ -139,3 +139,24 @@ def print_headline(report: dict[str, Any], rows: list[dict[str, str]]) -> None:
         if row["ANN"] == ann["label"]:
             table.add_row(*(row[k] for k in keys))
     console.print(table)
+
+
+def print_sd_answer(report: dict[str, Any], answer: str, rows: list[dict[str, str]]) -> None:
+    """A sigma-delta report's headline: the warning when it does not drive, the goal's answer
+    (``answer``, the report's first screen) and the energy per chip (``rows``)."""
+    from rich.table import Table
+
+    console = Console()
+    if not report["drives"]:
+        rate = report["task"]["success_rate"]
+        console.print(f"[bold red]WARNING: the sigma-delta policy does not drive (success "
+                      f"{rate:.0%} < 80 %): its energy numbers are not a result.[/]")  # fmt: skip
+    console.print(answer)
+    table = Table(title="energy per inference, sigma-delta vs the same-shape ANN",
+                  caption="report.html has every term, the counts per layer and the figures")  # fmt: skip
+    keys = [k for k in rows[0] if k != "updates rule"] if rows else []
+    for title in keys:
+        table.add_column(title, justify="right")
+    for row in rows:
+        table.add_row(*(row[k] for k in keys))
+    console.print(table)

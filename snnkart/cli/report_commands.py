@@ -4,11 +4,11 @@ policy."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
-from snnkart.cli.console import ConsoleReporter, print_headline
+from snnkart.cli.console import ConsoleReporter, print_headline, print_sd_answer
 from snnkart.cli.guard import ForceOpt, guard, refuse_other_files
 
 
@@ -39,6 +39,14 @@ def report(
         ),
     ] = None,
     step: Annotated[int, typer.Option(help="env step shown in the raster figure")] = 20,
+    sanafe: Annotated[
+        bool,
+        typer.Option(
+            "--sanafe",
+            help="a sigma-delta deployment: replay its messages on SANA-FE's Loihi model and "
+            "check the goal there too (a LIF deployment runs SANA-FE whenever it is installed)",
+        ),
+    ] = False,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="directory (default: the deployment's)")
     ] = None,
@@ -47,16 +55,31 @@ def report(
     """Energy per inference and per episode of the deployed spiking policy against the ANN
     baseline on hardware profiles, with the task performance of both: report.json, .md, .html."""
     from snnkart.app.report import run_report
-    from snnkart.report.document import REPORT_FILES, headline
+    from snnkart.report.document import REPORT_FILES
 
     if out is not None:  # its default, the deployment's directory, holds the deployment too
         refuse_other_files(out, {*REPORT_FILES, "deploy.json"}, force)
 
     reporter = ConsoleReporter()
     record = guard(
-        lambda: run_report(deploy_dir, ann, profile, out, reporter, host_profile, sweep, step)
+        lambda: run_report(
+            deploy_dir, ann, profile, out, reporter, host_profile, sweep, step, sanafe
+        )
     )
-    print_headline(record, headline(record))
+    _print(record)
+
+
+def _print(record: dict[str, Any]) -> None:
+    """The report's headline: a sigma-delta report's answer, else the LIF energy table."""
+    from snnkart.report.document import headline
+
+    if record.get("kind") == "sigma-delta":
+        from snnkart.report.first_screen import sd_sentence
+        from snnkart.report.sd_document import chip_rows
+
+        print_sd_answer(record, sd_sentence(record), chip_rows(record))
+    else:
+        print_headline(record, headline(record))
 
 
 plot_app = typer.Typer(help="Figures of a deployed policy.", no_args_is_help=True)

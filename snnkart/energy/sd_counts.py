@@ -23,6 +23,7 @@ import math
 from dataclasses import dataclass, fields, replace
 from typing import Any
 
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.link import word_bits
 from snnkart.energy.counts import HostOp
 from snnkart.errors import ReportError
@@ -98,6 +99,31 @@ class SigmaDeltaCounts:
             v = [float(x) for x in data[name]]
             values[name] = tuple([*v, 0.0] if len(v) == len(values["sizes"]) + 1 else v)
         return cls(**values)
+
+    @classmethod
+    def of_deploy(cls, record: DeployRecord) -> SigmaDeltaCounts:
+        """A sigma-delta deployment's counts (``counts.sigma_delta`` totals) as means per env
+        step, with its network's shape, precision and action mode. ``input_bits`` is
+        ``num_message_bits``: the deploy record's manifest summary does not keep the manifest's
+        ``input_bits`` (the integer range of the input, 8), and the deployed input Delta sends
+        its messages at ``num_message_bits`` as every layer (its ``payload_bits`` are messages x
+        ``num_message_bits``), so that is what crosses the link."""
+        sd = record.counts.sigma_delta
+        if sd is None:
+            raise ReportError(
+                f"{record.nir_file}: a LIF deployment has no sigma-delta counts; price it with "
+                "SnnCounts.of_deploy (snnkart report does)"
+            )
+        n = max(record.counts.env_steps, 1)
+        net = record.network
+        return cls(
+            n_in=net.n_in, sizes=tuple(net.sizes), n_out=net.n_out,
+            num_message_bits=sd.num_message_bits, input_bits=sd.num_message_bits,
+            rows=sd.rows_per_env_step,
+            **{k: tuple(v / n for v in getattr(sd, k)) for k in PER_LAYER},
+            precision=record.precision, action_mode=record.manifest.action_mode,
+            env_steps=record.counts.env_steps,
+        )  # fmt: skip
 
     @property
     def depth(self) -> int:

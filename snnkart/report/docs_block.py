@@ -7,16 +7,37 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from snnkart.errors import ReportError
 from snnkart.report.document import md_table
-from snnkart.report.first_screen import pair_rows, sentence
+from snnkart.report.first_screen import pair_rows, sd_sentence, sentence
+from snnkart.report.sd_document import chip_rows
 
+READS = ("snnkart/report/v2", "snnkart/report/v3")
+"""The report.json versions this code reads: v3, and v2 (a LIF report, as v3 writes it)."""
 BEGIN = "<!-- generated from {source} by scripts/render_docs.py: do not edit -->"
 END = "<!-- end of generated block -->"
 
 
+def check_version(report: dict[str, Any], source: str) -> None:
+    """Refuse a report.json this code does not read, in one line naming the fix."""
+    schema = report.get("schema")
+    if schema in READS:
+        return
+    if isinstance(schema, str) and schema.startswith("snnkart/report/v"):
+        raise ReportError(
+            f"{source}: {schema} was written by an older snnkart; run `snnkart report "
+            "DEPLOYMENT_DIR` again (it reads the deployment's deploy.json)"
+        )
+    raise ReportError(f"{source}: not a snnkart report.json (schema {schema!r})")
+
+
 def energy_block(report: dict[str, Any], source: str) -> str:
     """The generated part of the page: where the numbers come from, the one-sentence verdict
-    and the verdict per pair of platforms."""
+    (the goal's answer first for a sigma-delta report) and the verdict per pair of platforms."""
+    check_version(report, source)
+    if report.get("kind") == "sigma-delta":
+        return "\n\n".join([BEGIN.format(source=source), sd_sentence(report),
+                             md_table(chip_rows(report)).rstrip(), END])  # fmt: skip
     deploy = report["deploy"]
     where = (
         f"Deployment: `{deploy.get('backend', '?')}` ({deploy.get('precision', '?')}), "

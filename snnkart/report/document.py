@@ -11,6 +11,7 @@ from typing import Any
 from snnkart.io import write_bytes, write_json, write_text
 from snnkart.report import first_screen as first
 from snnkart.report import plots
+from snnkart.report import sd_document as sd
 from snnkart.report.ledger import ledger, price_rows
 from snnkart.report.sanafe_page import TITLE as SANAFE_TITLE
 from snnkart.report.sanafe_page import sanafe_lines, sanafe_rows
@@ -77,6 +78,13 @@ def _int8(report: dict[str, Any]) -> str:
 
 
 def _figures(report: dict[str, Any], trace: Any) -> dict[str, bytes]:
+    if report.get("kind") == "sigma-delta":
+        figs = sd.figures(report)
+        if report.get("sweep"):
+            sw = report["sweep"]
+            figs["tradeoff"] = plots.tradeoff(sw["points"], sw["ann_64_64_pj"], sw["profile"],
+                                              _sweep_title(sw))  # fmt: skip
+        return figs
     snn, net, d = report["snn"], report["network"], report["deploy"]
     figs = {"verdict": plots.verdict(first.chart_rows(report), first.chart_legend(report)),
             "firing_rates": plots.firing_rates(snn["per_inference"]["firing_rates"], net["sizes"])}  # fmt: skip
@@ -233,11 +241,14 @@ def _deployment(report: dict[str, Any]) -> str:
         f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). Network "
         f"{net['n_in']} -> {net['sizes']} -> {net['n_out']}, T = {net['num_steps']}. Host work "
         f"priced on {report['host_profile']}. {_parity(d)}{_int8(report)}"
+        + (f" Stateful: {report['state']['note']}." if report.get("state") else "")
     )
 
 
 def sections(report: dict[str, Any], figure_names: list[str]) -> list[Section]:
     """The page, in order; the first section (untitled) is the first screen."""
+    if report.get("kind") == "sigma-delta":
+        return sd.sections(report, figure_names)
     merged = first.merged_note(report)
     return [
         ("", _first_section(report)),
@@ -292,7 +303,8 @@ def _md_block(block: Block) -> list[str]:
         return [md_table(block["rows"])] if block["rows"] else []
     if kind == "details":
         return [f"### {block['summary']}", "", md_table(block["rows"])]
-    return [f"![{CAPTIONS[block['name']]}]({block['name']}.png)", ""]
+    caption = block.get("caption") or CAPTIONS[block["name"]]
+    return [f"![{caption}]({block['name']}.png)", ""]
 
 
 def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
@@ -330,7 +342,7 @@ def _html_block(block: Block, figs: dict[str, bytes]) -> str:
                 f"{_html_table(block['rows'], block['id'])}</details>")  # fmt: skip
     name = block["name"]
     return (f'<figure id="fig-{name}"><img alt="{name}" src="data:image/png;base64,'
-            f'{base64.b64encode(figs[name]).decode()}"><figcaption>{html.escape(CAPTIONS[name])}'
+            f'{base64.b64encode(figs[name]).decode()}"><figcaption>{html.escape(block.get("caption") or CAPTIONS[name])}'
             "</figcaption></figure>")  # fmt: skip
 
 

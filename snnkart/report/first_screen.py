@@ -175,3 +175,21 @@ def distinct(report: dict[str, Any]) -> list[dict[str, Any]]:
     return [c for c in report["comparisons"] if not (
         c["ann"] == "same_width" and run.get((c["snn_profile"], c["ann_profile"])) == c["ann_pj"]
     )]  # fmt: skip
+
+
+def sd_sentence(report: dict[str, Any]) -> str:
+    """A sigma-delta deployment's answer first (does issue 34's goal hold on the primary chip,
+    with the ratios' 90 % intervals), then the term in the way, the proxies and SANA-FE: the
+    goal's own verdict (:func:`snnkart.energy.goal.decide`)."""
+    g = report["goal"]
+    checks = "; ".join(
+        f"{times(c['ratio']['median'])} the {c['baseline']} ANN (90 %: "
+        f"{times(c['ratio']['p05'])}-{times(c['ratio']['p95'])}, needs <= {c['factor']:g}x)"
+        for c in g["primary"]["checks"]
+    )
+    return (
+        f"{'Yes' if g['holds'] else 'No'}: the sigma-delta policy (success "
+        f"{pct(report['task']['success_rate'])}) {'meets' if g['holds'] else 'does not meet'} "
+        f"the energy goal on {g['primary']['chip']}: dynamic energy per inference {checks}. "
+        f"In words: {g['verdict']}."
+    )

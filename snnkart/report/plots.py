@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+SD_PART_COLOURS = {"messages": "#bcbd22"}
+"""A sigma-delta inference's part the LIF breakdown has not (its graded messages)."""
 PART_COLOURS = {
     "synaptic ops": "#1f77b4",
     "neuron updates": "#ff7f0e",
@@ -53,8 +55,10 @@ def firing_rates(rates: Sequence[float], sizes: Sequence[int]) -> bytes:
     return _png(fig)
 
 
-def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
-    """Left: energy per inference per (network, profile), log scale; right: its parts (%)."""
+def breakdown(energies: dict[str, dict[str, float]],
+              colours: dict[str, str] = PART_COLOURS) -> bytes:  # fmt: skip
+    """Left: energy per inference per (network, profile), log scale (an ``SNN ...`` label in
+    red); right: its parts (%), one colour per part of ``colours``."""
     fig, axes = _figure(10.0, 0.45 * len(energies) + 1.6, ncols=2)
     left, right = axes[0]
     labels = list(energies)
@@ -70,7 +74,7 @@ def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
     for yi, t in zip(y, totals, strict=True):
         left.text(t / 1000, yi, f" {t / 1000:.3g}", va="center", fontsize=8)
     start = np.zeros(len(labels))
-    for part, colour in PART_COLOURS.items():
+    for part, colour in colours.items():
         share = np.array([100 * p.get(part, 0.0) / max(t, 1e-30)
                           for p, t in zip(energies.values(), totals, strict=True)])  # fmt: skip
         right.barh(y, share, left=start, color=colour, label=part)
@@ -83,7 +87,7 @@ def breakdown(energies: dict[str, dict[str, float]]) -> bytes:
         *right.get_legend_handles_labels(),
         fontsize=7,
         loc="lower center",
-        ncol=len(PART_COLOURS),
+        ncol=len(colours),
         frameon=False,
     )  # below the bars, covering none
     fig.tight_layout(rect=(0, 0.07, 1, 1))
@@ -148,11 +152,21 @@ def _density_curve(ax: Any, curve: Sequence[tuple[float, float]], break_even: fl
     ax.set_ylabel("SNN / ANN energy")
 
 
+MARKERS = {
+    "dense LIF": "o",
+    "sparse LIF": "s",
+    "stateful LIF": "D",
+    "sigma-delta trained": "^",
+    "ANN converted": "v",
+}
+"""One marker per policy kind of a sweep's runs (:func:`snnkart.app.report_sweep.policy_kind`)."""
+
+
 def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile: str,
              title: str) -> bytes:  # fmt: skip
-    """Left: success rate against energy per inference (one dot per run of the sweep, the
-    ANN's energy as vertical lines); right: energy per inference against T. ``title`` says
-    whose runs these are."""
+    """Left: success rate against energy per inference (one dot per run of the sweep, its
+    marker its policy kind, the ANN's energy as vertical lines); right: energy per inference
+    against T (the ANN's as horizontal lines). ``title`` says whose runs these are."""
     fig, axes = _figure(10.0, 3.8, ncols=2)
     left, right = axes[0]
     names = sorted({p["point"] for p in points})
@@ -162,10 +176,15 @@ def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile
     for k, name in enumerate(names):
         runs = [p for p in points if p["point"] == name]
         colour = cmap(k % 10)
-        left.scatter([r["energy_pj"] / 1000 for r in runs], [100 * r["success_rate"] for r in runs],
-                     color=colour, label=name, s=22)  # fmt: skip
-        right.scatter([r["num_steps"] for r in runs], [r["energy_pj"] / 1000 for r in runs],
-                      color=colour, s=22)  # fmt: skip
+        for kind in dict.fromkeys(r.get("kind", "dense LIF") for r in runs):
+            mine = [r for r in runs if r.get("kind", "dense LIF") == kind]
+            label = name if kind == "dense LIF" else f"{name} ({kind})"
+            marker = MARKERS.get(kind, "o")
+            left.scatter([r["energy_pj"] / 1000 for r in mine],
+                         [100 * r["success_rate"] for r in mine], color=colour, label=label,
+                         s=22, marker=marker)  # fmt: skip
+            right.scatter([r["num_steps"] for r in mine], [r["energy_pj"] / 1000 for r in mine],
+                          color=colour, s=22, marker=marker)  # fmt: skip
     for (label, pj), style in zip(ann_pj.items(), ("--", ":", "-."), strict=False):
         left.axvline(pj / 1000, color="black", linestyle=style, linewidth=1, label=f"ANN {label}")
         right.axhline(pj / 1000, color="black", linestyle=style, linewidth=1)

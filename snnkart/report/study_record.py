@@ -7,13 +7,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from snnkart.contract.deploy_record import StepCounts
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind, key, omit_if
 
-STUDY = RecordKind("study", 2, rerun="snnkart study")
+STUDY = RecordKind("study", 3, rerun="snnkart study")
 """v2 (issue 31): the study's data kind, and per run the evaluation's mean lap time and counts
-per env step, per cell the chip's synaptic operations; v1 files load without them."""
+per env step, per cell the chip's synaptic operations; v1 files load without them. v3 (issue
+34): a sigma-delta run's ``sigma_delta_counts``; v2 files load without them."""
 SCHEMA_FILE = Path(__file__).with_name("study.schema.json")
 
 
@@ -80,6 +82,10 @@ class RunRecord:
     eval_stood_still: int | None = None
     eval_spikes_per_step: float | None = None
     eval_counts_per_step: StepCounts | None = None
+    sigma_delta_counts: dict[str, Any] | None = field(default=None, metadata=OMIT_NONE)
+    """A sigma-delta run's evaluation counts per env step: ``dataclasses.asdict`` of
+    :meth:`snnkart.energy.sd_counts.SigmaDeltaCounts.of_deploy` (what ``snnkart report --sweep``
+    prices with ``sd_terms``)."""
     curve: Curve
 
     @property

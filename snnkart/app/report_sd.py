@@ -1,0 +1,146 @@
+"""``snnkart report`` on a sigma-delta deployment: its counts per env step priced on every chip
+profile (:func:`snnkart.energy.sd_pricing.sd_terms`), the schedule and update-rule what-ifs, the
+joint 90 % intervals against the fair ANN baselines (the same shape on ``horowitz45_fp32_sram``
+and ``horowitz45_int8``) and issue 34's goal, decided (:func:`snnkart.energy.goal.decide`).
+
+The ANN baseline has the deployed network's shape: ``n_in -> sizes -> n_out``, as the report
+builds it for a LIF policy. The host work is priced on ``--host-profile`` if given, else on the
+baseline it is compared with (as :func:`snnkart.energy.goal.priced_policy` does).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from snnkart.contract.deploy_record import DeployRecord
+from snnkart.contract.records import to_data
+from snnkart.energy import goal
+from snnkart.energy.counts import AnnCounts
+from snnkart.energy.pricing import ann_terms, breakdown, total
+from snnkart.energy.profiles import Profile, load_profile
+from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sd_pricing import sd_terms, what_ifs
+from snnkart.energy.uncertainty import method
+
+KIND = "sigma-delta"
+"""``report.json``'s ``kind`` for a sigma-delta deployment (a LIF report has no ``kind``)."""
+BASELINES = tuple(name for name, _ in goal.BOUNDS)
+"""The fair ANN baselines, memory-inclusive: fp32 + SRAM and int8 + SRAM."""
+GOAL_CHIPS = (goal.PRIMARY, *goal.PROXIES)
+
+
+def same_shape_ann(counts: SigmaDeltaCounts) -> AnnCounts:
+    """The ANN with the deployed network's shape (its layers as ReLU MACs)."""
+    widths = (counts.n_in, *counts.sizes, counts.n_out)
+    return AnnCounts(widths, counts.action_mode,
+                     f"ANN {'-'.join(map(str, counts.sizes))} (same shape)")  # fmt: skip
+
+
+def layer_names(counts: SigmaDeltaCounts) -> list[str]:
+    """Names of the per-layer counts: the input Delta, each SigmaDelta, the readout Sigma."""
+    return ["input Delta (host)", *(f"SigmaDelta {i + 1}" for i in range(counts.depth)),
+            "readout Sigma"]  # fmt: skip
+
+
+def _interval(p: goal.Priced, factor: float) -> dict[str, Any]:
+    c = goal.check(p, factor)
+    return {"baseline": p.baseline, "factor": factor, "ratio": c["ratio"], "snn_pj": c["snn_pj"],
+            "ann_pj": c["ann_pj"], "within": c["holds"]}  # fmt: skip
+
+
+def chip_pricing(counts: SigmaDeltaCounts, chip: Profile, baselines: list[Profile],
+                 host: Profile | None) -> dict[str, Any]:  # fmt: skip
+    """One chip: the terms (host work on ``host``, else on the first baseline), the what-ifs and
+    the joint 90 % interval of the ratio against each baseline."""
+    on = host or baselines[0]
+    terms = sd_terms(counts, chip, on)
+    ann = same_shape_ann(counts)
+    factors = dict(goal.BOUNDS)
+    return {
+        "chip": chip.name, "host_profile": on.name, "snn_pj": total(terms),
+        "breakdown_pj": breakdown(terms), "terms": [t.as_dict() for t in terms],
+        "what_ifs": what_ifs(counts, chip, on),
+        "intervals": [_interval(goal.priced_policy(counts, chip, b, ann), factors[b.name])
+                      for b in baselines],
+    }  # fmt: skip
+
+
+def decide_goal(counts: SigmaDeltaCounts,
+                sanafe_pj: dict[str, float] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The goal's decision on loihi2 (loihi1 named as a proxy), against both baselines."""
+    ann = same_shape_ann(counts)
+    priced = [goal.priced_policy(counts, load_profile(c), load_profile(b), ann)
+              for c in GOAL_CHIPS for b in BASELINES]  # fmt: skip
+    return goal.decide(priced, sanafe_pj)
+
+
+def _deploy(record: DeployRecord, deploy_dir: Path) -> dict[str, Any]:
+    return {"file": str(deploy_dir), "backend": record.backend, "precision": record.precision,
+            "nir_file": record.nir_file, "env": record.env.env, "track": record.env.track,
+            "track_given": record.env.track_given, "track_source": record.env.track_source,
+            "episodes": record.summary.episodes, "env_steps": record.counts.env_steps,
+            "first_seed": record.first_seed, "parity": to_data(record.parity)}  # fmt: skip
+
+
+def sd_report(record: DeployRecord, deploy_dir: Path, chips: list[Profile],
+              host: Profile | None, drives: float, sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
+    """A sigma-delta deployment's report (module docstring), without the schema tag and the
+    sweep (the caller adds them); with ``sanafe``, SANA-FE's replay and its check of the goal."""
+    counts = SigmaDeltaCounts.of_deploy(record)
+    section: dict[str, Any] = {"available": False, "reason": "not asked for: run snnkart "
+                               "report with --sanafe (needs the sanafe extra)"}  # fmt: skip
+    sanafe_pj = None
+    if sanafe:
+        from snnkart.app.sanafe_sd_report import sanafe_sd
+
+        section, sanafe_pj = sanafe_sd(record, counts, list(BASELINES))
+    baselines = [load_profile(b) for b in BASELINES]
+    ann = same_shape_ann(counts)
+    s = record.summary
+    steps = counts.env_steps / max(s.episodes, 1)
+    return {
+        "kind": KIND,
+        "deploy": _deploy(record, deploy_dir),
+        "drives": s.success_rate >= drives,
+        "network": {"n_in": counts.n_in, "sizes": list(counts.sizes), "n_out": counts.n_out,
+                    "rows": counts.rows, "num_message_bits": counts.num_message_bits,
+                    "input_bits": counts.input_bits, "action_mode": counts.action_mode},
+        "task": {"success_rate": s.success_rate, "mean_lap_time": s.mean_lap_time,
+                 "mean_return": s.mean_return, "episodes": s.episodes,
+                 "steps_per_episode": steps},
+        "sigma_delta": {"layers": layer_names(counts), "per_env_step": asdict(counts),
+                        "link_bits": list(counts.link_bits()),
+                        "host_ops": [vars(op) for op in counts.host()]},
+        "ann": {"same_shape": {"label": ann.label, "widths": list(ann.widths), "macs": ann.macs,
+                               "breakdown_pj": {b.name: breakdown(ann_terms(ann, b))
+                                                for b in baselines}}},
+        "host_profile": host.name if host else "the baseline it is compared with",
+        "profiles": {p.name: p.describe() for p in [*chips, *baselines, *([host] if host else [])]},
+        "pricing": [chip_pricing(counts, c, baselines, host) for c in chips],
+        "goal": decide_goal(counts, sanafe_pj),
+        "uncertainty": method(),
+        "sanafe": section,
+    }  # fmt: skip
+
+
+STATEFUL = (
+    "membranes persist: the LIF state carries across env steps (manifest state_persists), "
+    "zeroed only at an episode's start, so an action depends on the episode so far; each env "
+    "step still runs T + L Lava steps, and the L fill/drain steps are priced with the T (they "
+    "change the membranes the next env step starts from: the policy's computation, not a "
+    "pipeline's idle steps)"
+)
+"""What the report says of a stateful LIF deployment (docs/stateful.md)."""
+
+
+def stateful_note(record: DeployRecord) -> dict[str, Any] | None:
+    """``{"state_persists": True, "note": ...}`` for a stateful LIF deployment (read from the
+    manifest beside its NIR file), else None (a LIF report without a ``state`` key)."""
+    from snnkart.contract.manifest import Manifest, manifest_path
+
+    path = manifest_path(Path(record.nir_file))
+    if not path.is_file() or not Manifest.read(path).state_persists:
+        return None
+    return {"state_persists": True, "rows_per_env_step": "T + L", "note": STATEFUL}

@@ -1,0 +1,125 @@
+"""``snnkart report --sweep study.json``: a study's runs priced, for the accuracy-energy figure
+(not the deployment's own numbers)."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+from snnkart.contract.records import Reading, RecordError, from_data
+from snnkart.energy.counts import AnnCounts, SnnCounts
+from snnkart.energy.pricing import ann_terms, snn_terms, total
+from snnkart.energy.profiles import Profile
+from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sd_pricing import sd_terms
+from snnkart.errors import ReportError
+from snnkart.report.study_record import STUDY, RunRecord, StudyRecord
+
+
+def _read_sweep(path: Path) -> StudyRecord:
+    """A study record (``snnkart study``'s ``study.json``), refused with a one-line reason."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise ReportError(f"--sweep {path}: not a readable study.json ({exc})") from exc
+    if isinstance(data, dict) and data.get("benchmark") == "bench_sparsity":
+        raise ReportError(
+            f"--sweep {path}: written by bench_sparsity, an older snnkart; run "
+            "`snnkart study studies/sparsity.toml` again and pass its study.json"
+        )
+    if not isinstance(data, dict) or not str(data.get("schema", "")).startswith(
+        STUDY.tag_of(0)[:-1]
+    ):
+        schema = data.get("schema") if isinstance(data, dict) else None
+        raise ReportError(
+            f"--sweep {path}: not a study.json (schema {schema!r}); pass the "
+            "study.json of `snnkart study`"
+        )
+    source = f"--sweep {path}"
+    try:  # the JSON parsed above, read as the record (not written out and parsed again)
+        return from_data(StudyRecord, data, Reading(STUDY, source, STUDY.version_of(data, source)))
+    except RecordError as exc:
+        raise ReportError(str(exc)) from None
+
+
+KINDS = ("dense LIF", "sparse LIF", "stateful LIF", "sigma-delta trained", "ANN converted")
+"""The policy kinds the accuracy-energy figure tells apart (one marker each)."""
+SD_POLICIES = {"sdnn": "sigma-delta trained", "ann-sd": "ANN converted"}
+"""The study policies that are sigma-delta, and their kinds."""
+RATE_PENALTY = re.compile(r"(^|[_-])r(0*[1-9][0-9.]*|0\.[0-9]*[1-9][0-9]*)($|[_-])")
+"""A variant name with a non-zero rate penalty (``t4_r0.05``, studies/sparsity.toml's names)."""
+
+
+def policy_kind(policy: str, variant: str) -> str:
+    """A run's kind (:data:`KINDS`) from its policy and variant: ``sdnn`` and ``ann-sd`` are the
+    sigma-delta kinds; a LIF run is stateful if its policy or variant says ``stateful``, sparse
+    if its variant says ``sparse`` or names a non-zero rate penalty (``r0.05``), else dense."""
+    if policy in SD_POLICIES:
+        return SD_POLICIES[policy]
+    names = f"{policy} {variant}".lower()
+    if "stateful" in names:
+        return "stateful LIF"
+    if "sparse" in names or RATE_PENALTY.search(variant.lower()):
+        return "sparse LIF"
+    return "dense LIF"
+
+
+def _point(run: RunRecord, chip: Profile, host: Profile) -> dict[str, Any]:
+    """One run priced: a sigma-delta run's counts with sd_terms, a LIF run's with snn_terms."""
+    base = {"point": run.variant or f"{run.env}-{run.policy}", "seed": run.seed}
+    kind = {"kind": policy_kind(run.policy, run.variant)}
+    if run.sigma_delta_counts is not None:
+        sd = SigmaDeltaCounts.from_dict(run.sigma_delta_counts)
+        return {**base, "num_steps": 1, "sizes": list(sd.sizes),
+                "success_rate": run.eval_success_rate,
+                "energy_pj": total(sd_terms(sd, chip, host)), **kind}  # fmt: skip
+    counts = run.eval_counts_per_step
+    assert counts is not None
+    return {**base, "num_steps": counts.num_steps, "sizes": counts.sizes,
+            "success_rate": run.eval_success_rate,
+            "energy_pj": total(snn_terms(SnnCounts.of_sweep(counts), chip, host)), **kind}  # fmt: skip
+
+
+def _ann_shape(runs: list[RunRecord]) -> tuple[str, AnnCounts]:
+    """The ANN the runs are compared with: 64-64 on the first LIF run's inputs and outputs (as
+    before sigma-delta runs), else the first sigma-delta run's own shape."""
+    lif = [r.eval_counts_per_step for r in runs if r.sigma_delta_counts is None]
+    if lif and lif[0] is not None:
+        first = lif[0]
+        obs_dim = first.network.n_in // (first.population or 1)
+        return "64-64", AnnCounts((obs_dim, 64, 64, first.network.n_out))
+    sd = SigmaDeltaCounts.from_dict(runs[0].sigma_delta_counts or {})
+    return "-".join(map(str, sd.sizes)), AnnCounts((sd.n_in, *sd.sizes, sd.n_out), sd.action_mode)
+
+
+def sweep_section(
+    path: Path, chip: Profile, host: Profile, digital: list[Profile]
+) -> dict[str, Any]:
+    """A study's SNN runs, priced: each run's energy per inference on ``chip`` (host work on
+    ``host``) from the counts of its evaluation on the reference (a sigma-delta run's with
+    :func:`snnkart.energy.sd_pricing.sd_terms`), with its kind (:func:`policy_kind`), and the
+    ANN's (:func:`_ann_shape`) on each digital profile. A run's point is its variant (its cell
+    without variants)."""
+    record = _read_sweep(path)
+    if record.schema == STUDY.tag_of(1):
+        raise ReportError(
+            f"--sweep {path}: written by an older snnkart (no counts per env step); run "
+            "`snnkart study` with its config again (runs and evaluations are reused)"
+        )
+    runs = [r for r in record.runs
+            if r.eval_counts_per_step is not None or r.sigma_delta_counts is not None]  # fmt: skip
+    if not runs:
+        raise ReportError(
+            f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "
+            "run a study of spiking policies, e.g. studies/sparsity.toml"
+        )
+    points = [_point(run, chip, host) for run in runs]
+    shape, ann = _ann_shape(runs)
+    ann_pj = {f"{shape} on {d.name}": total(ann_terms(ann, d)) for d in digital}
+    envs = sorted({r.env for r in runs})
+    commit = (record.machine or {}).get("commit")
+    return {"file": str(path), "env": ", ".join(envs), "commit": commit,
+            "profile": chip.name, "host_profile": host.name, "points": points,
+            "ann_64_64_pj": ann_pj}  # fmt: skip
