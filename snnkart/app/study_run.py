@@ -225,7 +225,8 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
         eval_mean_lap_time=evaluation.summary.mean_lap_time,
         eval_stood_still=evaluation.summary.stood_still,
         eval_spikes_per_step=evaluation.spikes_per_step,
-        eval_counts_per_step=evaluation.counts_per_step, curve=c,
+        eval_counts_per_step=evaluation.counts_per_step,
+        sigma_delta_counts=evaluation.sigma_delta_counts, curve=c,
     )  # fmt: skip
 
 
