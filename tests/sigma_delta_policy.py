@@ -64,10 +64,13 @@ def write_sigma_delta_policy(
     vth: Sequence[int] | int = 0,
     vth_in: int = 0,
     seed: int = 0,
+    divisor: float = 120,
 ) -> Path:
     """Write ``policy.nir`` and its manifest into ``out_dir``; return the ``.nir`` path.
     ``hidden`` None: the ANN's weights; else a random net with these hidden sizes.
-    ``vth``: each hidden layer's threshold (integer units), or one for all."""
+    ``vth``: each hidden layer's threshold (integer units), or one for all. ``divisor``: each
+    unit is ``max|W| x`` the previous unit ``/ divisor`` (the trained kind's is 254: finer
+    units, wider integers)."""
     import nir
 
     ann = _ann()
@@ -78,7 +81,7 @@ def write_sigma_delta_policy(
         weights, biases = _random_net([n_in, *hidden, n_out], seed)
     units = [INPUT_SCALE]
     for w in weights:
-        units.append(float(np.abs(w).max()) * units[-1] / 120)
+        units.append(float(np.abs(w).max()) * units[-1] / divisor)
     names = [f"fc{i + 1}" for i in range(len(weights) - 1)] + ["readout"]
     vths = [vth] * (len(weights) - 1) if isinstance(vth, int) else list(vth)
     block = SigmaDeltaBlock(

@@ -187,6 +187,25 @@ def test_lava_closed_loop_is_bit_exact_with_the_reference_for_200_env_steps(
 
 @pytest.mark.lava
 @pytest.mark.timeout(300)
+def test_a_readout_wider_than_lavas_int32_stays_bit_exact(tmp_path: Path) -> None:
+    """Units as fine as the trained kind's make the readout's integers exceed 2**31 (Lava's
+    fixed-point models compute in int32 and would wrap): the readout runs beside the bridge in
+    int64, and Lava still agrees with the reference on every env step."""
+    nir_file = write_sigma_delta_policy(tmp_path / "wide", vth=4, vth_in=2, divisor=400)
+    policy = open_policy(nir_file)
+    backend = SigmaDeltaReference(policy, "fixed")
+    widest = 0
+    for obs in _observations(policy, 40):
+        window, _ = backend.step(obs)
+        widest = max(widest, int(np.abs(window.raster[:, -policy.sizes[-1] :]).max()))
+    assert widest > 2**31  # the case Lava's own Sigma would wrap
+    record = _deploy(nir_file, "lava-sim", "fixed", 1, tmp_path / "lava")
+    p = record.parity  # type: ignore[attr-defined]
+    assert p.env_steps > 0 and p.same_arithmetic_mismatched_windows == 0
+
+
+@pytest.mark.lava
+@pytest.mark.timeout(300)
 def test_a_broken_lava_engine_is_caught_by_the_parity_check(
     policies: dict[str, Path], monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -186,44 +186,60 @@ class LavaNetwork(BridgedNetwork):
 
 class SigmaDeltaNetwork(BridgedNetwork):
     """A sigma-delta chain (:class:`~snnkart.backends.lava_params.SigmaDeltaLavaSpec`):
-    ``Delta -> Dense -> SigmaDelta(ReLU) -> ... -> Dense -> Sigma`` of ``lava.proc.sdn`` and
-    graded ``lava.proc.dense``; the bridge holds the host's input for the window's ``rows``
-    steps and records every population's sent values (the Sigma's value) at every row."""
+    ``Delta -> Dense -> SigmaDelta(ReLU) -> ...`` of ``lava.proc.sdn`` and graded
+    ``lava.proc.dense`` on Lava; the bridge holds the host's input for the window's ``rows``
+    steps and records every population's sent values at every row.
+
+    The readout (its Dense and Sigma) runs here, beside the bridge, in int64 (float64): its
+    state needs more bits than Lava's fixed-point models hold (they compute in int32 and wrap;
+    a 64-64 policy's readout needs about 35), so on Lava it would wrap where the chain does not.
+    It is the reference's own arithmetic (:class:`~snnkart.backends.sigma_delta.SigmaDeltaChain`:
+    the Dense one step late, the Sigma accumulating) applied to the last SigmaDelta's messages
+    as Lava sent them, so the readout columns of the raster still check those messages."""
 
     def __init__(self, spec: SigmaDeltaLavaSpec) -> None:
         from lava.proc.dense.process import Dense
-        from lava.proc.sdn.process import ActivationMode, Delta, Sigma, SigmaDelta
+        from lava.proc.sdn.process import ActivationMode, Delta, SigmaDelta
 
         from snnkart.backends.lava_procs.bridge import HostBridge
+        from snnkart.backends.sigma_delta import lava_fixed_weights
 
         fixed = spec.arithmetic == "fixed"
-        self.sizes, self.W = spec.sizes, spec.rows
+        self.sizes, self.W = spec.sizes[:-1], spec.rows  # what Lava runs and the bridge records
         self.msg_size = self.sizes[0] + 1
+        readout = spec.weights[-1]
+        self.readout_w = lava_fixed_weights(readout) if fixed else np.asarray(readout, float)
+        self.acc_dtype = np.int64 if fixed else np.float64
+        self.buf = np.zeros(readout.shape[0], self.acc_dtype)  # the readout Dense's buffer
+        self.out = np.zeros(readout.shape[0], self.acc_dtype)  # the readout Sigma
         bridge = HostBridge(
             sizes=self.sizes, num_steps=1, window=self.W, held=True, name="host_bridge"
         )
         sender: Any = Delta(shape=(self.sizes[0],), vth=spec.vth_in)
         bridge.a_out.connect(sender.a_in)
         kwargs: dict[str, Any] = {"num_weight_bits": 8, "weight_exp": 0} if fixed else {}
-        hidden = len(spec.weights) - 1
-        for i, w in enumerate(spec.weights):
+        for i, w in enumerate(spec.weights[:-1]):
             dense = Dense(
                 weights=w, num_message_bits=spec.num_message_bits, name=f"dense{i + 1}", **kwargs
             )
             sender.s_out.connect([dense.s_in, getattr(bridge, f"s_in{i}")])
-            if i < hidden:
-                sender = SigmaDelta(
-                    shape=(w.shape[0],), vth=spec.vth[i], bias=spec.biases[i],
-                    act_mode=ActivationMode.RELU,
-                )  # fmt: skip
-            else:
-                sender = Sigma(shape=(w.shape[0],))
+            sender = SigmaDelta(
+                shape=(w.shape[0],), vth=spec.vth[i], bias=spec.biases[i],
+                act_mode=ActivationMode.RELU,
+            )  # fmt: skip
             dense.a_out.connect(sender.a_in)
-        sender.s_out.connect(getattr(bridge, f"s_in{hidden + 1}"))
+        sender.s_out.connect(getattr(bridge, f"s_in{len(spec.weights) - 1}"))
         self._start(bridge, fixed)
 
     def window(self, x: np.ndarray) -> np.ndarray:
-        return self.exchange(x)
+        raster = self.exchange(x).astype(self.acc_dtype)
+        last = raster[:, -self.sizes[-1] :]
+        values = np.zeros((self.W, self.out.size), self.acc_dtype)
+        for r in range(self.W):  # as SigmaDeltaChain.step: the Dense sends last row's buffer
+            self.out = self.out + self.buf
+            self.buf = self.readout_w @ last[r]
+            values[r] = self.out
+        return np.concatenate([raster, values], axis=1)
 
 
 def build_network(spec: LavaSpec | SigmaDeltaLavaSpec) -> BridgedNetwork:

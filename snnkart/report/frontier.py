@@ -18,6 +18,8 @@ from __future__ import annotations
 import statistics
 from typing import Any
 
+import numpy as np
+
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.goal import BOUNDS, PRIMARY, PROXIES, decide, priced_policy
 from snnkart.energy.pricing import total
@@ -155,3 +157,82 @@ def env_verdict(env: str, points: list[dict[str, Any]], info: dict[str, Any]) ->
             f"{b['energy_nj']:.3g} nJ per inference, its 90 % interval up to "
             f"{b['ratio_fp32']['p95']:.2g}x the fp32 ANN (goal 0.5) and "
             f"{b['ratio_int8']['p95']:.2g}x the int8 ANN (goal 1); in the way: {way}.")  # fmt: skip
+
+
+KIND_MARKERS = {"ann-sd": ("v", "ANN converted"), "sdnn": ("^", "sigma-delta trained"),
+                "stateful": ("s", "stateful LIF"), "snn": ("o", "LIF (dense, sparse)")}  # fmt: skip
+"""The figure's marker and label per policy kind."""
+
+
+def _kind(p: dict[str, Any]) -> str:
+    return "stateful" if "stateful" in p["variant"] else p["policy"]
+
+
+def _row(p: dict[str, Any]) -> list[str]:
+    way = p["in_the_way"]["part"] if p["in_the_way"] else "-"
+    return [_name(p), f"{p['success']:.0%} ({p['success_min']:.0%}-{p['success_max']:.0%})",
+            f"{p['energy_nj']:.3g}", f"{p['ratio_fp32']['median']:.2g} ({p['ratio_fp32']['p95']:.2g})",
+            f"{p['ratio_int8']['median']:.2g} ({p['ratio_int8']['p95']:.2g})",
+            "yes" if p["keeps_accuracy"] else "no", "yes" if p["goal"] else "no", way]  # fmt: skip
+
+
+def frontier_block(summary: dict[str, Any], source: str, begin: str, end: str) -> str:
+    """The docs' generated block: per env, the dense ANN, a table of the points and the
+    verdict sentence."""
+    head = ["point", "success (seeds' range)", f"nJ on {summary['chip']}",
+            "x fp32 ANN, median (p95)", "x int8 ANN, median (p95)", "keeps accuracy", "goal",
+            "in the way"]  # fmt: skip
+    parts = [begin.format(source=source)]
+    for env, info in summary["envs"].items():
+        ann = info["ann_nj"]
+        fp32, int8 = (ann[b] for b in summary["baselines"])
+        parts.append(
+            f"**{env}** — dense ANN {'-'.join(map(str, info['ann_widths']))}: "
+            f"{info['ann_success']:.0%} success; {fp32:.3g} nJ (fp32 + SRAM), "
+            f"{int8:.3g} nJ (int8) per inference."
+        )
+        rows = [_row(p) for p in summary["points"] if p["env"] == env]
+        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        parts.append("\n".join(lines))
+    parts.append("\n".join(f"- {info['verdict']}" for info in summary["envs"].values()))
+    parts.append(end)
+    return "\n\n".join(parts)
+
+
+def frontier_figure(summary: dict[str, Any]) -> bytes:
+    """Success against energy per inference on the goal's chip, one panel per env: a marker
+    per point (its kind), the ANN baselines' energy as vertical lines and 95 % of the dense
+    ANN's success as a horizontal one. PNG bytes."""
+    from snnkart.report.plots import _figure, _png
+
+    envs = list(summary["envs"])
+    fig, axes = _figure(4.2 * len(envs), 3.8, ncols=len(envs))
+    axes = list(np.atleast_1d(axes).ravel())
+    for ax, env in zip(axes, envs, strict=True):
+        info = summary["envs"][env]
+        for kind, (marker, label) in KIND_MARKERS.items():
+            pts = [p for p in summary["points"] if p["env"] == env and _kind(p) == kind]
+            if pts:
+                ax.scatter([p["energy_nj"] for p in pts], [p["success"] for p in pts],
+                           marker=marker, s=46, label=label, zorder=3)  # fmt: skip
+        for base, style in zip(summary["baselines"], ("--", ":"), strict=True):
+            ax.axvline(info["ann_nj"][base], color="grey", ls=style, lw=1,
+                       label=f"ANN, {base}")  # fmt: skip
+        if info["ann_success"] is not None:
+            ax.axhline(KEEP * info["ann_success"], color="black", lw=0.6,
+                       label=f"{KEEP:.0%} of the ANN's success")  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_title(env)
+        ax.set_xlabel(f"energy per inference on {summary['chip']} (nJ, central)")
+        ax.set_ylim(-0.03, 1.03)
+    axes[0].set_ylabel("success (median of seeds)")
+    axes[-1].legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    return bytes(_png(fig))
+
+
+def verdicts_block(summary: dict[str, Any], source: str, begin: str, end: str) -> str:
+    """The README's generated block: the verdict per env, one sentence each."""
+    lines = "\n".join(f"- {info['verdict']}" for info in summary["envs"].values())
+    return "\n\n".join([begin.format(source=source), lines, end])
