@@ -43,6 +43,11 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
 - ``idle-update-active``: every chip is read as updating only its active neurons, so a clocked
   profile (Loihi) prices a sigma-delta inference's idle neurons at nothing
   (``snnkart.energy.profiles.Profile.rule``); guarded by ``tests/test_sd_energy.py``.
+- ``sd-threshold-strict``: the sigma-delta reference sends a message only when the change is
+  strictly above its threshold (Lava's code sends at ``>=``; ``SigmaDeltaChain._encode``);
+  guarded by the Lava parity tests of ``tests/test_sigma_delta.py``.
+- ``stateful-forgets``: a stateful LIF policy restarts from zero state at every env step in
+  torch (``snnkart.rl.policies.stream_step``); guarded by ``tests/test_stateful.py``.
 """
 
 from __future__ import annotations
@@ -70,6 +75,8 @@ MUTANTS = {
     "shared-price-independent": ["tests/test_uncertainty.py"],
     "memory-row-8kb": ["tests/test_energy_terms.py"],
     "idle-update-active": ["tests/test_sd_energy.py"],
+    "sd-threshold-strict": ["tests/test_sigma_delta.py", "-k", "bit_exact"],
+    "stateful-forgets": ["tests/test_stateful.py", "-k", "torch_policy_equals"],
 }
 
 
@@ -170,6 +177,29 @@ def apply(name: str) -> None:
             )
 
         Profile.rule = rule  # type: ignore[method-assign]
+    elif name == "sd-threshold-strict":
+        from snnkart.backends.sigma_delta import SigmaDeltaChain
+
+        real_encode = SigmaDeltaChain._encode
+
+        def encode(self, i, act_new):  # type: ignore[no-untyped-def]
+            vth = self.vth[i]
+            self.vth[i] = vth + (1 if self.spec.fixed else 1e-9)  # '>=' on vth + 1 is '>'
+            try:
+                return real_encode(self, i, act_new)
+            finally:
+                self.vth[i] = vth
+
+        SigmaDeltaChain._encode = encode  # type: ignore[method-assign]
+    elif name == "stateful-forgets":
+        import torch
+
+        import snnkart.rl.policies
+
+        real_stream = snnkart.rl.policies.stream_step
+        snnkart.rl.policies.stream_step = lambda snn, x, state: real_stream(  # type: ignore[assignment]
+            snn, x, torch.zeros_like(state)
+        )
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 
