@@ -237,6 +237,13 @@ CHECKPOINT_HELP = "latest (default), best (needs eval.every_steps), an env step 
 _VideoOption = Annotated[
     Path | None, typer.Option(help="film episodes to a GIF, or an MP4 (needs the video extra)")
 ]
+_SigmaDeltaOption = Annotated[
+    bool,
+    typer.Option(
+        "--sigma-delta",
+        help="with nir-ref/lava-sim: convert a ReLU ANN run to a sigma-delta network first",
+    ),
+]
 _VideoEpisodesOption = Annotated[
     int, typer.Option(help="with --video: film the first K episodes; all are scored")
 ]
@@ -268,13 +275,7 @@ def eval_(
         str | None,
         typer.Option("--track", "-t", help="another track (default: the one trained on)"),
     ] = None,
-    sigma_delta: Annotated[
-        bool,
-        typer.Option(
-            "--sigma-delta",
-            help="with nir-ref/lava-sim: convert a ReLU ANN run to a sigma-delta network first",
-        ),
-    ] = False,
+    sigma_delta: _SigmaDeltaOption = False,
 ) -> None:
     """Evaluate the deterministic policy with frozen normalisation; print and write JSON.
 
@@ -284,13 +285,9 @@ def eval_(
     from snnkart.app.evaluate import run_eval, run_eval_exported
 
     if backend != "torch":
-        from snnkart.eval.request import BACKENDS, DeployRequest
+        from snnkart.eval.request import DeployRequest
 
-        if backend not in BACKENDS:
-            from snnkart.app.api import BACKENDS as EVAL_BACKENDS  # torch too
-
-            fail(f"unknown backend {backend!r}{did_you_mean(backend, EVAL_BACKENDS)}; choose torch, "
-                 "nir-ref or lava-sim")  # fmt: skip
+        _check_backend(backend)
         request = guard(
             lambda: DeployRequest(run_dir, backend, precision, episodes, seed, env, track, out)
         )
@@ -312,6 +309,17 @@ def eval_(
     guard(lambda: run_eval(run_dir, episodes, seed, checkpoint, render, video, out,
                            ConsoleReporter(), track, video_episodes),
           "no results were written")  # fmt: skip
+
+
+def _check_backend(backend: str) -> None:
+    """A backend eval runs a policy on: torch or a spiking one, else a one-line error."""
+    from snnkart.eval.request import BACKENDS
+
+    if backend not in BACKENDS:
+        from snnkart.app.api import BACKENDS as EVAL_BACKENDS  # torch too
+
+        fail(f"unknown backend {backend!r}{did_you_mean(backend, EVAL_BACKENDS)}; choose torch, "
+             "nir-ref or lava-sim")  # fmt: skip
 
 
 def _deploy_interrupted(backend: str) -> str:
