@@ -5,7 +5,10 @@
 ``docs/energy.md``: the verdict and the table per pair of platforms, from
 ``docs/energy/report.json`` (the main job's report, copied in at a clean commit by
 ``python -m benchmarks.bench_main_job`` and ``cp runs/bench_main_job/report/report.json
-docs/energy/``). ``tests/test_docs.py`` renders them again and fails if the page differs.
+docs/energy/``). ``docs/frontier.md``: the temporal-sparsity frontier per env and its verdicts,
+priced from ``docs/frontier/study.json`` (``snnkart study studies/frontier.toml``'s record,
+copied in), and its figure ``docs/frontier/frontier.png``. ``tests/test_docs.py`` renders the
+pages again and fails if one differs.
 """
 
 from __future__ import annotations
@@ -13,22 +16,35 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from snnkart.report.docs_block import energy_block, replace_block
+from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
+from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
+from snnkart.report.study_record import StudyRecord
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = {"docs/energy.md": "docs/energy/report.json"}
+FRONTIER = "docs/frontier/study.json"
+PAGES = {"docs/energy.md": "docs/energy/report.json", "docs/frontier.md": FRONTIER,
+         "README.md": FRONTIER}  # fmt: skip
+FIGURE = "docs/frontier/frontier.png"
 
 
 def rendered(page: str, source: str) -> str:
     """The page's text with its generated block rendered from ``source``."""
-    report = json.loads((ROOT / source).read_text())
-    return replace_block((ROOT / page).read_text(), energy_block(report, source))
+    if source == FRONTIER:
+        summary = frontier(StudyRecord.read(ROOT / source))
+        render = verdicts_block if page == "README.md" else frontier_block
+        block = render(summary, source, BEGIN, END)
+    else:
+        block = energy_block(json.loads((ROOT / source).read_text()), source)
+    return replace_block((ROOT / page).read_text(), block)
 
 
 def main() -> None:
     for page, source in PAGES.items():
         (ROOT / page).write_text(rendered(page, source))
         print(f"{page}: rendered from {source}")
+    summary = frontier(StudyRecord.read(ROOT / FRONTIER))
+    (ROOT / FIGURE).write_bytes(frontier_figure(summary))
+    print(f"{FIGURE}: drawn from {FRONTIER}")
 
 
 if __name__ == "__main__":

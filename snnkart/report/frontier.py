@@ -154,7 +154,7 @@ def env_verdict(env: str, points: list[dict[str, Any]], info: dict[str, Any]) ->
                 f"does not keep the accuracy ({b['success']:.0%} against the ANN's "
                 f"{info['ann_success']:.0%})")  # fmt: skip
     return (f"{env}: no point reaches the goal; the closest, {_name(b)}, {accuracy} and costs "
-            f"{b['energy_nj']:.3g} nJ per inference, its 90 % interval up to "
+            f"{b['energy_nj']:.3g} nJ per inference at central prices, its 90 % interval up to "
             f"{b['ratio_fp32']['p95']:.2g}x the fp32 ANN (goal 0.5) and "
             f"{b['ratio_int8']['p95']:.2g}x the int8 ANN (goal 1); in the way: {way}.")  # fmt: skip
 
