@@ -51,7 +51,7 @@ MSG
 fi
 
 VENV=.venv
-extras="${SNNKART_EXTRAS:-dev,video}"   # CI: dev,bench,ray,video,sanafe (every optional part)
+extras="${SNNKART_EXTRAS:-dev,video}"   # CI: dev,bench,ray,video,sanafe,wandb (every optional part)
 stamp="$VENV/.snnkart-installed"
 want="$(cat pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1) $PY [$extras]"
 if ! is_py310 "$VENV/bin/python"; then

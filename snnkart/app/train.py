@@ -16,13 +16,19 @@ def run_training(
     reporter: Reporter,
     resume: bool = False,
     total_steps: int | None = None,
+    wandb: bool = False,
 ) -> int:
     """Train; return the exit code (0, or 130 after Ctrl-C and 143 after SIGTERM, both with a
     checkpoint saved). A resume keeps the run's own config and length; ``total_steps`` extends
-    (or shortens) it, and says so."""
+    (or shortens) it, and says so. ``wandb``: also log the scalars to Weights & Biases."""
     from snnkart.rl.ppo import Trainer
+    from snnkart.rl.wandb_log import require_wandb
 
+    if wandb:
+        require_wandb()  # before the run directory is written
     trainer = Trainer(cfg, run_dir, resume=resume, total_steps=total_steps)
+    if wandb:
+        trainer.out.open_wandb(trainer.cfg)
     cfg = trainer.cfg
     total = trainer.num_iterations * cfg.batch_size
     rounded = f" (rounded up to whole rollouts: {total:,})" if total != cfg.total_steps else ""

@@ -182,6 +182,7 @@ def train(
     ] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
     force: ForceOpt = False,
+    wandb: Annotated[bool, typer.Option(help="also log to Weights & Biases (extra)")] = False,
 ) -> None:
     """Train an ann, snn or sdnn policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.app.train import run_training
@@ -200,7 +201,7 @@ def train(
         run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
         refuse_other_files(run_dir, (), force or resume or (run_dir / "config.toml").exists())
         extend = steps if resume else None  # a resume keeps the run's length unless --steps
-        code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume, extend)
+        code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume, extend, wandb)
     except KeyboardInterrupt as exc:  # before training began: nothing to save yet
         interrupted_exit(exc, "stopped before training began; the run directory is as it was")
     except (CheckpointWriteError, OSError) as exc:

@@ -5,6 +5,7 @@ run_dir/checkpoint.pt (.json)  the latest checkpoint; checkpoints/iter_NNNNNN.pt
 run_dir/best.pt (.json)        the best periodic evaluation's policy (``eval.every_steps``)
 run_dir/metrics.jsonl          one JSON record per iteration
 run_dir/tb/                    TensorBoard scalars (``run.tensorboard``)
+run_dir/wandb/                 the same scalars for Weights & Biases (``train --wandb``)
 run_dir/trajectories/          kart positions per iteration (``run.trajectories``), for replay
 """
 
@@ -24,6 +25,7 @@ from snnkart.errors import CheckpointError
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import save_checkpoint
 from snnkart.rl.config import TrainConfig, read_run_config
+from snnkart.rl.wandb_log import WandbLogger
 
 
 def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Track:
@@ -137,6 +139,7 @@ class RunDir:
         self.metrics_path = self.path / "metrics.jsonl"
         self.tensorboard = tensorboard
         self.writer: Any = None
+        self.wandb: WandbLogger | None = None
 
     @property
     def latest(self) -> Path:
@@ -185,14 +188,22 @@ class RunDir:
 
             self.writer = SummaryWriter(str(self.path / "tb"))
 
+    def open_wandb(self, cfg: TrainConfig) -> None:
+        """Also log the scalars to Weights & Biases (:mod:`snnkart.rl.wandb_log`)."""
+        if self.wandb is None:
+            self.wandb = WandbLogger(self.path, cfg.model_dump(mode="json"))
+
     def log(self, record: dict[str, Any], global_step: int) -> None:
-        """Append the iteration's record to metrics.jsonl and its scalars to TensorBoard."""
+        """Append the iteration's record to metrics.jsonl and its scalars to TensorBoard (and
+        W&B)."""
         with open(self.metrics_path, "a") as f:
             f.write(json.dumps(record) + "\n")
         if self.writer is not None:
             for key, value in record.items():
                 if "/" in key and value is not None:
                     self.writer.add_scalar(key, value, global_step)
+        if self.wandb is not None:
+            self.wandb.log(record, global_step)
 
     def write_trajectories(
         self, iteration: int, global_step: int, arrays: dict[str, np.ndarray]
@@ -210,3 +221,6 @@ class RunDir:
         if self.writer is not None:
             self.writer.close()
             self.writer = None
+        if self.wandb is not None:
+            self.wandb.close()
+            self.wandb = None
