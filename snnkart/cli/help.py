@@ -26,6 +26,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "snnkart train --set ppo.learning_rate=1e-3 --set snn.num_steps=4",
         "snnkart train --policy ann --set ann.activation=relu",
         "snnkart train --policy sdnn --set sdnn.message_penalty=0.05",
+        "WANDB_MODE=offline snnkart train --env grid --wandb",
     ),
     "eval": (
         f"snnkart eval {_RUN} --episodes 50",
@@ -57,6 +58,8 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "ros": ("snnkart ros drive runs/gazebo-snn",),
     "ros sim": ("snnkart ros sim --policy runs/gazebo-snn",),
     "ros drive": ("snnkart ros drive runs/gazebo-snn/policy.nir --backend lava-sim",),
+    "track": ("snnkart track edit my_track.toml",),
+    "track edit": ("snnkart track edit my_track.toml", "snnkart track edit snnkart/tracks/small_S.toml"),
 }
 """Examples by command path ("" is ``snnkart`` itself); :func:`finish_help` requires one for
 every command, so a new command cannot ship without."""
