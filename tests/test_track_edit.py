@@ -14,29 +14,8 @@ from snnkart.errors import TrackError
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = [ROOT / "snnkart/tracks/small_S.toml", ROOT / "snnkart/tracks/big_S.toml"]
-EXPECTED = """\
-schema = "snnkart/track/v1"
-name = "corridor"
-description = ""
-pixels_per_metre = 100.0  # x right, y down, px
-time_limit_s = 30.0  # episode truncation at the default speed scale
-
-[spawn]
-position = [150, 150]  # px
-heading_deg = 0  # 0 = +x (east), clockwise on screen
-jitter = 0  # px, uniform per axis
-
-[[walls]]
-points = [[500, 100], [100, 100], [100, 200], [500, 200]]
-
-[[checkpoints]]
-a = [300, 100]
-b = [300, 200]
-
-[[checkpoints]]  # finish line
-a = [450, 100]
-b = [450, 200]
-"""
+EXPECTED = (ROOT / "tests/data/editor/corridor.toml").read_text()
+"""The file :func:`draw_corridor` draws."""
 
 
 def click(ed: TrackEditor, x: float, y: float, button: int = 1) -> None:

@@ -73,6 +73,7 @@ def _history(run_file: Path) -> list[dict[str, Any]]:
             rows.append({_key(it): json.loads(it.value_json) for it in record.history.item})
     return rows
 
+
 def test_without_the_flag_no_wandb_files(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "wandb", None)  # and it is never imported
     out = tmp_path / "run"

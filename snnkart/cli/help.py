@@ -59,7 +59,10 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "ros sim": ("snnkart ros sim --policy runs/gazebo-snn",),
     "ros drive": ("snnkart ros drive runs/gazebo-snn/policy.nir --backend lava-sim",),
     "track": ("snnkart track edit my_track.toml",),
-    "track edit": ("snnkart track edit my_track.toml", "snnkart track edit snnkart/tracks/small_S.toml"),
+    "track edit": (
+        "snnkart track edit my_track.toml",
+        "snnkart track edit snnkart/tracks/small_S.toml",
+    ),
 }
 """Examples by command path ("" is ``snnkart`` itself); :func:`finish_help` requires one for
 every command, so a new command cannot ship without."""

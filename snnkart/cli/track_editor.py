@@ -18,13 +18,15 @@ from snnkart.envs.track_edit import TrackEditor
 from snnkart.errors import TrackError
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-import pygame  # noqa: E402  (after the prompt switch)
+import pygame  # after the prompt switch
 
 SCALE = 0.75
 """Screen px per track px: the 1000 x 1000 px world (10 m square) in a 750 px canvas."""
 CANVAS = 750
 STATUS_H = 96
-HELP = "W wall  C checkpoint  S spawn  M move  Del delete  G grid  Ctrl+Z undo  Ctrl+S save  Esc quit"
+HELP = (
+    "W wall  C checkpoint  S spawn  M move  Del delete  G grid  Ctrl+Z undo  Ctrl+S save  Esc quit"
+)
 COLOURS = {
     "bg": (24, 26, 30), "grid": (44, 48, 54), "wall": (220, 220, 220), "open": (255, 200, 60),
     "cp": (80, 150, 255), "finish": (255, 80, 80), "spawn": (90, 220, 120), "ok": (90, 220, 120),
@@ -38,7 +40,8 @@ class EditorWindow:
     def __init__(self, editor: TrackEditor, path: Path) -> None:
         if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
             os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # headless: as the renderer does
-        pygame.init()
+        pygame.display.init()
+        pygame.font.init()
         self.editor, self.path = editor, path
         self.screen = pygame.display.set_mode((CANVAS, CANVAS + STATUS_H))
         pygame.display.set_caption(f"snnkart track edit {path}")
@@ -119,7 +122,10 @@ class EditorWindow:
 
     def _draw_spawn(self, spawn: tuple[float, float], heading_deg: float, jitter: float) -> None:
         centre, h = to_screen(spawn), math.radians(heading_deg)
-        tip = (spawn[0] + 2 * KART_RADIUS_PX * math.cos(h), spawn[1] + 2 * KART_RADIUS_PX * math.sin(h))
+        tip = (
+            spawn[0] + 2 * KART_RADIUS_PX * math.cos(h),
+            spawn[1] + 2 * KART_RADIUS_PX * math.sin(h),
+        )
         pygame.draw.circle(self.screen, COLOURS["spawn"], centre, round(KART_RADIUS_PX * SCALE), 2)
         pygame.draw.line(self.screen, COLOURS["spawn"], centre, to_screen(tip), 2)
         if jitter > 0:
@@ -131,7 +137,10 @@ class EditorWindow:
         ed = self.editor
         unsaved = " (unsaved)" if ed.state.to_toml() != self.saved_state else ""
         lines = [
-            (f"{self.path}{unsaved}  tool: {ed.tool}  grid: {'10 px' if ed.grid else 'off'}", "text"),
+            (
+                f"{self.path}{unsaved}  tool: {ed.tool}  grid: {'10 px' if ed.grid else 'off'}",
+                "text",
+            ),
             (HELP, "text"),
         ]
         verdict = ed.error or "valid: the loader accepts this track"

@@ -260,7 +260,7 @@ class TrackEditor:
         self.validate()
 
     def _aim(self, pos: Point) -> None:
-        spawn = self.state.spawn
+        spawn, pos = self.state.spawn, self.snap(pos)
         if spawn is not None and math.dist(spawn, pos) >= MIN_HEADING_DRAG_PX:
             self.state.heading_deg = float(
                 round(math.degrees(math.atan2(pos[1] - spawn[1], pos[0] - spawn[0])))
