@@ -190,10 +190,8 @@ def train(
     from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config
 
-    overrides = {
-        "env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
-        "action_mode": action_mode,
-    }  # fmt: skip
+    overrides = {"env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
+                 "action_mode": action_mode}  # fmt: skip
     run_dir = out or Path("runs")
     try:
         cfg = load_config(config, overrides, set_)
