@@ -57,9 +57,16 @@ def test_events_draw_and_save_the_expected_file(window: EditorWindow, tmp_path: 
     for x, y in [(500, 100), (100, 100), (100, 200), (500, 200)]:
         post_mouse(pygame.MOUSEBUTTONDOWN, x, y)
         post_mouse(pygame.MOUSEBUTTONUP, x, y)
-    post_mouse(pygame.MOUSEBUTTONDOWN, 500, 200, button=3)  # ends the wall
+    post_mouse(pygame.MOUSEBUTTONDOWN, 500, 200, button=3)  # ends the wall: the next click
+    post_mouse(pygame.MOUSEBUTTONDOWN, 800, 800)  # starts a wall of one point, dropped below
+    post_mouse(pygame.MOUSEBUTTONUP, 800, 800)
     post_key(pygame.K_s)  # the spawn, facing east, then moved
-    post_line((141, 141), (241, 141))
+    post_mouse(pygame.MOUSEBUTTONDOWN, 141, 141)
+    post_mouse(pygame.MOUSEMOTION, 141, 241)
+    window.pump()
+    assert window.editor.state.heading_deg == 90  # the drag aims the kart as it goes
+    post_mouse(pygame.MOUSEMOTION, 241, 141)
+    post_mouse(pygame.MOUSEBUTTONUP, 241, 141)
     post_key(pygame.K_m)
     post_line((141, 141), (150, 150))
     post_key(pygame.K_c)
