@@ -26,7 +26,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "snnkart train --set ppo.learning_rate=1e-3 --set snn.num_steps=4",
         "snnkart train --policy ann --set ann.activation=relu",
         "snnkart train --policy sdnn --set sdnn.message_penalty=0.05",
-        "WANDB_MODE=offline snnkart train --env grid --wandb",
+        "snnkart train --env grid --wandb",
     ),
     "eval": (
         f"snnkart eval {_RUN} --episodes 50",
