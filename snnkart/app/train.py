@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import signal
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from snnkart.app.reporter import Reporter
 from snnkart.envs.tracks import track_label
 from snnkart.rl.config import TrainConfig
+
+if TYPE_CHECKING:
+    from snnkart.rl.ppo import Trainer
 
 
 def run_training(
@@ -21,14 +25,7 @@ def run_training(
     """Train; return the exit code (0, or 130 after Ctrl-C and 143 after SIGTERM, both with a
     checkpoint saved). A resume keeps the run's own config and length; ``total_steps`` extends
     (or shortens) it, and says so. ``wandb``: also log the scalars to Weights & Biases."""
-    from snnkart.rl.ppo import Trainer
-    from snnkart.rl.wandb_log import require_wandb
-
-    if wandb:
-        require_wandb()  # before the run directory is written
-    trainer = Trainer(cfg, run_dir, resume=resume, total_steps=total_steps)
-    if wandb:
-        trainer.out.open_wandb(trainer.cfg)
+    trainer = _trainer(cfg, run_dir, resume, total_steps, wandb)
     cfg = trainer.cfg
     total = trainer.num_iterations * cfg.batch_size
     rounded = f" (rounded up to whole rollouts: {total:,})" if total != cfg.total_steps else ""
@@ -70,3 +67,23 @@ def run_training(
         f"{result.global_step:,}. Resume with: snnkart train --resume --out {run_dir}"
     )
     return 128 + signum
+
+
+def _trainer(
+    cfg: TrainConfig, run_dir: Path, resume: bool, total_steps: int | None, wandb: bool
+) -> Trainer:
+    """The run's trainer, logging to W&B too with ``wandb`` (checked before anything is
+    written: without the extra, a one-line install hint)."""
+    from snnkart.rl.ppo import Trainer
+    from snnkart.rl.wandb_log import require_wandb
+
+    if wandb:
+        require_wandb()
+    trainer = Trainer(cfg, run_dir, resume=resume, total_steps=total_steps)
+    if wandb:
+        try:
+            trainer.out.open_wandb(trainer.cfg)
+        except BaseException:  # wandb.init failed: release the envs before reporting it
+            trainer.close()
+            raise
+    return trainer
