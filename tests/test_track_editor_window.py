@@ -91,6 +91,21 @@ def test_events_draw_and_save_the_expected_file(window: EditorWindow, tmp_path: 
     assert not window.running
 
 
+def test_quitting_with_unsaved_changes_asks_twice(window: EditorWindow) -> None:
+    post_key(pygame.K_w)
+    post_mouse(pygame.MOUSEBUTTONDOWN, 100, 100)
+    post_key(pygame.K_ESCAPE)
+    window.pump()
+    assert window.running and window.message.startswith("unsaved changes: Esc again")
+    post_key(pygame.K_g)  # another key in between: the next Esc asks again
+    post_key(pygame.K_ESCAPE)
+    window.pump()
+    assert window.running
+    pygame.event.post(pygame.event.Event(pygame.QUIT))
+    window.pump()
+    assert not window.running
+
+
 def test_a_committed_track_opened_and_saved_is_the_same_file(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -3,7 +3,7 @@
 Every edit is :class:`snnkart.envs.track_edit.TrackEditor`'s (its docstring lists the tools
 and keys); this module maps screen pixels to track pixels (:data:`SCALE`), pygame events to the
 model's calls, and draws the track with the loader's verdict under it. Ctrl+S saves, Esc or
-closing the window quits (the status line says when there are unsaved changes).
+closing the window quits (with unsaved changes, only when asked twice in a row).
 """
 
 from __future__ import annotations
@@ -49,6 +49,7 @@ class EditorWindow:
         self.saved_state = editor.state.to_toml()
         self.message = ""
         self.running = True
+        self.quitting = False  # asked to quit once with unsaved changes
 
     def run(self) -> None:
         """Handle events and redraw until the window is closed."""
@@ -68,7 +69,7 @@ class EditorWindow:
     def handle(self, event: pygame.event.Event) -> None:
         ed = self.editor
         if event.type == pygame.QUIT:
-            self.running = False
+            self.quit()
         elif event.type == pygame.MOUSEBUTTONDOWN:
             ed.press(to_track(event.pos), event.button)
         elif event.type == pygame.MOUSEMOTION and event.buttons[0]:
@@ -81,13 +82,27 @@ class EditorWindow:
     def _key(self, event: pygame.event.Event) -> None:
         ctrl = bool(event.mod & pygame.KMOD_CTRL)
         if event.key == pygame.K_ESCAPE:
-            self.running = False
-        elif ctrl and event.key == pygame.K_s:
+            self.quit()
+            return
+        self.quitting = False  # any other key: the next Esc asks again
+        if ctrl and event.key == pygame.K_s:
             self.save()
         elif event.key in (pygame.K_DELETE, pygame.K_BACKSPACE):
             self.editor.delete(to_track(pygame.mouse.get_pos()))
         else:
             self.editor.key(pygame.key.name(event.key).lower(), ctrl)
+
+    @property
+    def unsaved(self) -> bool:
+        return self.editor.state.to_toml() != self.saved_state
+
+    def quit(self) -> None:
+        """Close the window; with unsaved changes only when asked twice in a row."""
+        if self.unsaved and not self.quitting:
+            self.quitting = True
+            self.message = "unsaved changes: Esc again quits without saving, Ctrl+S saves"
+        else:
+            self.running = False
 
     def save(self) -> None:
         try:
@@ -135,7 +150,7 @@ class EditorWindow:
 
     def _draw_status(self) -> None:
         ed = self.editor
-        unsaved = " (unsaved)" if ed.state.to_toml() != self.saved_state else ""
+        unsaved = " (unsaved)" if self.unsaved else ""
         lines = [
             (
                 f"{self.path}{unsaved}  tool: {ed.tool}  grid: {'10 px' if ed.grid else 'off'}",
