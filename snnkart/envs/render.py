@@ -23,7 +23,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from snnkart.envs.config import EnvConfig
-from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
+from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE, WORLD_SIZE_PX
 from snnkart.envs.tracks import Track
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -71,9 +71,6 @@ class DrawnEnv(Protocol):
     def episode_return(self) -> float: ...
     def describe_action(self, action: Any) -> str: ...
 
-
-WORLD_SIZE_PX = 1000.0
-"""Track coordinates shown on screen: 0 .. 1000 px on each axis."""
 
 PANEL_WIDTH_PX = 360.0
 """Width of the side panel at ``render_scale`` 1."""
