@@ -4,23 +4,19 @@
 layout, unchanged). Each component is a block of :class:`~snnkart.envs.observation.ObsField`
 with true bounds:
 
-============== ===== ============= ===============================================
-component      size  bounds        value
-============== ===== ============= ===============================================
-lidar          rays  [0, 1]        ray distance / range (with sim2real's noise and
-                                   dropout when those are configured)
-position       2     [0, 1]        x, y / world size (1000 px)
-heading        2     [-1, 1]       cos, sin of the heading
-velocity       1     [-1, 1]       forward speed / max speed
-angular_velocity 1   [-1, 1]       yaw rate / max yaw rate
-steering       1     [-1, 1]       steering angle / lock (steer only)
-checkpoint     3     [-1,1],[0,1]  the route to the next checkpoint: cos, sin, distance
-previous_action n    [0,1]/[-1,1]  the last action: one-hot (discrete) or the vector
-============== ===== ============= ===============================================
+- ``lidar`` (one per ray, [0, 1]): ray distance / range, with sim2real's noise and dropout
+  when those are configured (the noisy variant; there is no other);
+- ``position`` (2, [0, 1]): x, y / world size (1000 px);
+- ``heading`` (2, [-1, 1]): cos, sin of the heading;
+- ``velocity`` (1, [-1, 1]): forward speed / max speed (grid: 2, x and y velocity);
+- ``angular_velocity`` (1, [-1, 1]): yaw rate / max yaw rate (not in grid);
+- ``steering`` (1, [-1, 1]): steering angle / lock (steer only);
+- ``checkpoint`` (3): the route to the next checkpoint: cos, sin ([-1, 1]), distance ([0, 1]);
+- ``previous_action``: the last action, one-hot ([0, 1], discrete) or the vector ([-1, 1]).
 
-The default layouts are ``lidar velocity steering heading checkpoint`` (steer) and
-``lidar velocity angular_velocity heading checkpoint`` (gazebo, grid): the same values as
-before this option existed, named as before.
+The default layouts are ``lidar velocity steering heading checkpoint`` (steer), ``lidar
+velocity angular_velocity heading checkpoint`` (gazebo) and ``lidar velocity checkpoint``
+(grid): the same values as before this option existed, named as before.
 """
 
 from __future__ import annotations
@@ -46,7 +42,7 @@ COMPONENTS = (
 _DEFAULT_FIELDS = {
     "lidar": ("lidar",),
     "heading": ("heading_cos", "heading_sin"),
-    "velocity": ("speed", "linear_velocity"),  # one of them, the env's
+    "velocity": ("speed", "linear_velocity", "velocity_x", "velocity_y"),  # the env's
     "angular_velocity": ("angular_velocity",),
     "steering": ("steering",),
     "checkpoint": ("checkpoint_cos", "checkpoint_sin", "checkpoint_distance"),
@@ -134,6 +130,12 @@ def _extra(
         return ObsField("angular_velocity", 1, -1.0, 1.0, "yaw rate / max yaw rate"), yaw_rate
     if name == "previous_action":
         return _previous_action(env)
+    if name == "heading":  # grid: its kart never turns
+
+        def heading(_: np.ndarray) -> np.ndarray:
+            return np.array([math.cos(env.heading), math.sin(env.heading)])
+
+        return ObsField("heading", 2, -1.0, 1.0, "cos, sin of the heading"), heading
     raise ValueError(
         f"env {env.env_name!r} has no observation component {name!r}; "
         f"it has {', '.join(default_components(own))}, position, "

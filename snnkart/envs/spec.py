@@ -159,14 +159,14 @@ def fit_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
     run on another track or env when it fits, a resumed run may not."""
     name = getattr(env.unwrapped, "env_name", "?")
     obs_dim = int(np.prod(env.observation_space.shape or (0,)))
+    layout = layout_problem(saved, env)  # first: it names the difference
+    if layout:
+        return layout
     if saved.get("obs_dim") != obs_dim:
         return (
             f"the policy takes {saved.get('obs_dim')} observation values but env {name!r} "
             f"observes {obs_dim}; deploy it on the env it was trained on ({saved.get('env')})"
         )
-    layout = layout_problem(saved, env)
-    if layout:
-        return layout
     if saved.get("action_space") and str(env.action_space) != saved["action_space"]:
         return (
             f"the policy acts in {saved['action_space']} but env {name!r} expects "
