@@ -151,6 +151,12 @@ class Renderer:
         self._panel_top = 0  # set by _draw_static, below the panel title
         self._sprites: dict[tuple[Colour, int], pygame.Surface] = {}  # see _ghost_sprite
         self._static = self._draw_static()
+        self._hud: Any = None  # the window's heads-up display (snnkart.envs.hud)
+        self.screenshots: list[Any] = []  # paths saved with P
+        if human:
+            from snnkart.envs.hud import Hud
+
+            self._hud = Hud(env, s, self.track_width, self.size[1])
 
     # -- public API ----------------------------------------------------------------------------
 
@@ -164,12 +170,17 @@ class Renderer:
         self._draw_telemetry(frame)
         for overlay in self.env.overlays:  # callables drawing on the frame, e.g. key help
             overlay(frame)
+        if self._hud is not None:
+            self._hud(frame)
         return self._present(frame)
 
     def _present(self, frame: pygame.Surface) -> np.ndarray | None:
         if not self.human:
             return np.ascontiguousarray(pygame.surfarray.array3d(frame).transpose(1, 0, 2))
+        from snnkart.envs.hud import take_screenshots
+
         pygame.event.pump()
+        self.screenshots += take_screenshots(frame)
         pygame.display.flip()
         assert self._clock is not None
         self._clock.tick(self.env.metadata["render_fps"])
@@ -203,6 +214,8 @@ class Renderer:
             y = self._row(frame, y, line[0], line[1], line[2] if len(line) > 2 else TEXT)
         if bar is not None:
             self._draw_colour_bar(frame, y, bar)
+        if self._hud is not None:
+            self._hud.draw_fps(frame)
         return self._present(frame)
 
     def _ghost_sprite(self, colour: Colour, alpha: int) -> pygame.Surface:
