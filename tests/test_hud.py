@@ -73,6 +73,12 @@ def test_the_box_avoids_the_track() -> None:
     overlap_x = max(0, min(box.right, xmax) - max(box.left, xmin))
     overlap_y = max(0, min(box.bottom, ymax) - max(box.top, ymin))
     assert overlap_x * overlap_y == 0
+    from snnkart.envs.hud import _corner
+
+    # a track over the top left half: the box goes top right; over the left: bottom right
+    assert _corner(800, 800, (200, 350), (0, 0, 500, 500), 1.0) == (600, 0)
+    assert _corner(800, 800, (200, 350), (0, 0, 500, 800), 1.0) == (600, 0)
+    assert _corner(800, 800, (200, 350), (0, 0, 800, 400), 1.0) == (0, 450)
 
 
 def test_p_saves_a_screenshot_that_decodes(tmp_path: Path, monkeypatch: Any) -> None:
