@@ -73,7 +73,7 @@ def test_the_box_avoids_the_track() -> None:
     overlap_x = max(0, min(box.right, xmax) - max(box.left, xmin))
     overlap_y = max(0, min(box.bottom, ymax) - max(box.top, ymin))
     assert overlap_x * overlap_y == 0
-    from snnkart.envs.hud import _corner
+    from snnkart.envs.overlay import _corner
 
     # a track over the top left half: the box goes top right; over the left: bottom right
     assert _corner(800, 800, (200, 350), (0, 0, 500, 500), 1.0) == (600, 0)
@@ -102,7 +102,7 @@ def test_p_saves_a_screenshot_that_decodes(tmp_path: Path, monkeypatch: Any) -> 
 
 
 def test_controls_of_each_action_kind() -> None:
-    from snnkart.envs.hud import controls
+    from snnkart.envs.overlay import controls
 
     class Stub:
         def __init__(self, mode: str, names: tuple[str, ...], action: Any) -> None:

@@ -76,7 +76,7 @@ def test_a_chosen_layout_has_its_components_in_order_within_true_bounds(
 
 
 def test_an_unknown_component_is_refused_naming_the_choices() -> None:
-    with pytest.raises(ValueError, match="unknown observation component.*choose from lidar"):
+    with pytest.raises(ValueError, match=r"unknown observation component.*choose from lidar"):
         make_env("steer", "small_S", config={"observation": ["lidar", "gps"]})
     with pytest.raises(ValueError, match="list each once"):
         make_env("steer", "small_S", config={"observation": ["lidar", "lidar"]})

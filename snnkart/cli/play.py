@@ -3,7 +3,7 @@
 The keys are polled every step, so holding a key keeps acting. W/A/S/D drive (grid: up, left,
 down, right; gazebo: accelerate, turn left, brake, turn right; steer: throttle, steer left,
 brake, steer right), Space also brakes in gazebo and steer, R restarts the episode, P saves a
-screenshot (:mod:`snnkart.envs.hud`) and Esc or closing the window quits; the keys are also shown at the bottom of the window. When an episode
+screenshot (:mod:`snnkart.envs.overlay`) and Esc or closing the window quits; the keys are also shown at the bottom of the window. When an episode
 ends, one line with its outcome and return is printed and a new episode starts; standing still
 is printed once per spell, not again for each episode that ends because no key was pressed.
 
@@ -164,7 +164,7 @@ def _poll() -> tuple[str, Keys]:
         if event.type == pygame.KEYDOWN and event.key == pygame.K_r:
             command = "restart"
         if event.type == pygame.KEYDOWN and event.key == pygame.K_p:
-            pygame.event.post(event)  # the window saves the screenshot (snnkart.envs.hud)
+            pygame.event.post(event)  # the window saves the screenshot (snnkart.envs.overlay)
     held = pygame.key.get_pressed()
     keys = Keys(
         w=held[pygame.K_w],

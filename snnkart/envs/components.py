@@ -97,7 +97,7 @@ class Selection:
             if found:
                 lo, hi = found[0][0], found[-1][0] + found[-1][1].size
                 fields += [f for _, f in found]
-                self._parts.append(lambda obs, lo=lo, hi=hi: obs[lo:hi])
+                self._parts.append(_slice(lo, hi))
             else:
                 field, part = _extra(env, own, name)
                 fields.append(field)

@@ -151,10 +151,10 @@ class Renderer:
         self._panel_top = 0  # set by _draw_static, below the panel title
         self._sprites: dict[tuple[Colour, int], pygame.Surface] = {}  # see _ghost_sprite
         self._static = self._draw_static()
-        self._hud: Any = None  # the window's heads-up display (snnkart.envs.hud)
+        self._hud: Any = None  # the window's heads-up display (snnkart.envs.overlay)
         self.screenshots: list[Any] = []  # paths saved with P
         if human:
-            from snnkart.envs.hud import Hud
+            from snnkart.envs.overlay import Hud
 
             self._hud = Hud(env, s, self.track_width, self.size[1])
 
@@ -177,7 +177,7 @@ class Renderer:
     def _present(self, frame: pygame.Surface) -> np.ndarray | None:
         if not self.human:
             return np.ascontiguousarray(pygame.surfarray.array3d(frame).transpose(1, 0, 2))
-        from snnkart.envs.hud import take_screenshots
+        from snnkart.envs.overlay import take_screenshots
 
         pygame.event.pump()
         self.screenshots += take_screenshots(frame)
