@@ -108,6 +108,11 @@ class Selection:
         return np.concatenate([part(obs) for part in self._parts]).astype(np.float32)
 
 
+def _slice(lo: int, hi: int) -> Callable[[np.ndarray], np.ndarray]:
+    """The part ``[lo:hi]`` of the env's own observation."""
+    return lambda obs: obs[lo:hi]
+
+
 def _extra(
     env: KartEnv, own: Sequence[ObsField], name: str
 ) -> tuple[ObsField, Callable[[np.ndarray], np.ndarray]]:
