@@ -115,3 +115,43 @@ def test_controls_of_each_action_kind() -> None:
     assert controls(Stub("discrete", ("brake+right",), 0)) == (-1.0, 1.0)
     assert controls(Stub("continuous", (), np.array([0.5, -2.0]))) == (0.5, -1.0)
     assert controls(Stub("discrete", gazebo, None)) == (0.0, 0.0)
+
+
+def test_best_lap_is_the_fastest_finished_lap_shown() -> None:
+    import pygame
+
+    from snnkart.envs.overlay import ROWS, Hud
+    from snnkart.eval.drivers import drive_episode
+
+    env = snnkart.make("gazebo", track="small_S").unwrapped
+    hud = Hud(env, 0.8, 800, 800)
+    surface = pygame.Surface((1088, 800))
+    hud(surface)
+    assert hud.best_lap is None and hud._values()[ROWS.index("best lap")] == "-"
+    result = drive_episode(env, seed=0)
+    assert result.finished
+    hud(surface)
+    assert hud.best_lap == pytest.approx(env.elapsed_time)
+    assert hud._values()[ROWS.index("best lap")] == f"{env.elapsed_time:.2f} s"
+    best = hud.best_lap
+    env.reset(seed=1)
+    hud(surface)  # an unfinished episode leaves it
+    assert hud.best_lap == best
+
+
+def test_replay_window_shows_the_frame_rate() -> None:
+    import pygame
+
+    from snnkart.envs.render import TEXT, Renderer
+
+    env = snnkart.make("steer", track="small_S").unwrapped
+    env.reset(seed=0)
+    renderer = Renderer(env, human=True)
+    pad = renderer._hud.layout.pad
+    for _ in range(3):
+        renderer.draw_ghosts(np.array([[300.0, 500.0]]), [(200, 80, 80)], [("runs", "1")])
+    frame = window_frame()
+    renderer.close()
+    area = pygame.Rect(pad, pad, 80, 20)
+    assert count(frame, area, TEXT) > 5
+    assert renderer._hud.fps > 0
