@@ -79,6 +79,9 @@ def test_the_box_avoids_the_track() -> None:
     assert _corner(800, 800, (200, 350), (0, 0, 500, 500), 1.0) == (600, 0)
     assert _corner(800, 800, (200, 350), (0, 0, 500, 800), 1.0) == (600, 0)
     assert _corner(800, 800, (200, 350), (0, 0, 800, 400), 1.0) == (0, 450)
+    # a track over the whole view: the first corner, unless the kart is near it
+    assert _corner(800, 800, (200, 350), (0, 0, 1000, 1000), 1.0, (500.0, 500.0)) == (0, 0)
+    assert _corner(800, 800, (200, 350), (0, 0, 1000, 1000), 1.0, (100.0, 100.0)) == (0, 450)
 
 
 def test_p_saves_a_screenshot_that_decodes(tmp_path: Path, monkeypatch: Any) -> None:

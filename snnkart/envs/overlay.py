@@ -180,10 +180,16 @@ class HudLayout:
     """Where each HUD element is in a frame of ``size`` (w, h) whose track view is
     ``track_width`` px wide at ``scale`` screen px per world px: :attr:`regions` maps
     ``box``, ``text``, ``throttle``, ``brake``, ``steer`` and ``lidar`` to rects; ``text`` has
-    one row per name of :data:`ROWS`, :attr:`row_height` px each."""
+    one row per name of :data:`ROWS`, :attr:`row_height` px each. The box takes the corner
+    that covers least of the track's bounding box and not the ``kart`` (frame px)."""
 
     def __init__(
-        self, scale: float, track_width: int, height: int, track_bounds: tuple[float, ...]
+        self,
+        scale: float,
+        track_width: int,
+        height: int,
+        track_bounds: tuple[float, ...],
+        kart: tuple[float, float] | None = None,
     ) -> None:
         s = scale
         self.pad = max(4, round(10 * s))
@@ -196,7 +202,7 @@ class HudLayout:
             self.pad + len(ROWS) * self.row_height + self.pad + indicator + self.pad + mini
             + self.pad
         )  # fmt: skip
-        left, top = _corner(track_width, height, (width, box_h), track_bounds, s)
+        left, top = _corner(track_width, height, (width, box_h), track_bounds, s, kart)
         inner = left + self.pad
         y = top + self.pad
         text = pygame.Rect(inner, y, mini, len(ROWS) * self.row_height)
@@ -217,19 +223,29 @@ class HudLayout:
 
 
 def _corner(
-    track_width: int, height: int, size: tuple[int, int], bounds: tuple[float, ...], s: float
+    track_width: int,
+    height: int,
+    size: tuple[int, int],
+    bounds: tuple[float, ...],
+    s: float,
+    kart: tuple[float, float] | None = None,
 ) -> tuple[int, int]:
     """The top-left of a ``size`` box in the corner of the track view that covers least of
-    the track's bounding box ``bounds`` (world px)."""
+    the track's bounding box ``bounds`` (world px), never one near the ``kart`` (frame px)
+    while another is free of it."""
     w, h = size
+    near = 60 * s  # px around the kart kept clear
     xmin, ymin, xmax, ymax = (b * s for b in bounds)
     best: tuple[float, tuple[int, int]] | None = None
     for left in (0, track_width - w):
         for top in (0, height - h):
             dx = max(0.0, min(left + w, xmax) - max(left, xmin))
             dy = max(0.0, min(top + h, ymax) - max(top, ymin))
-            if best is None or dx * dy < best[0]:
-                best = (dx * dy, (left, top))
+            cost = dx * dy
+            if kart is not None and left - near < kart[0] < left + w + near:
+                cost += 2.0 * w * h if top - near < kart[1] < top + h + near else 0.0
+            if best is None or cost < best[0]:
+                best = (cost, (left, top))
     assert best is not None
     return best[1]
 
@@ -256,6 +272,7 @@ class Hud:
     def __init__(self, env: Any, scale: float, track_width: int, height: int) -> None:
         pygame.font.init()
         self.env = env
+        self._frame_geometry = (scale, track_width, height)
         self.layout = HudLayout(scale, track_width, height, env.track.bounds)
         self._font = pygame.font.Font(None, self.layout.font_size)
         self._range_px = env.config.lidar.range_m * PIXELS_PER_METRE
@@ -265,7 +282,10 @@ class Hud:
 
     def __call__(self, frame: pygame.Surface) -> None:
         self._tick()
-        env, regions = self.env, self.layout.regions
+        env, (scale, track_width, height) = self.env, self._frame_geometry
+        kart = (env.position[0] * scale, env.position[1] * scale)
+        self.layout = HudLayout(scale, track_width, height, env.track.bounds, kart)
+        regions = self.layout.regions
         if env.lap_finished:
             lap = env.elapsed_time
             self.best_lap = lap if self.best_lap is None else min(self.best_lap, lap)

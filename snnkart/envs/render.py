@@ -5,7 +5,8 @@ frame. In ``rgb_array`` mode the frame is drawn off screen and returned as an ``
 uint8 array; only pygame's font module is initialised, so no display (and no
 ``SDL_VIDEODRIVER`` setting, which would leak into later windows of the process) is needed.
 In ``human`` mode a window is opened; without a display (Linux with neither ``DISPLAY`` nor
-``WAYLAND_DISPLAY``) the SDL ``dummy`` video driver is used unless one is already chosen.
+``WAYLAND_DISPLAY``) the SDL ``dummy`` video driver is used unless one is already chosen; the
+window carries the HUD of :mod:`snnkart.envs.overlay`, and P saves it as a PNG.
 
 pygame is imported only here, so ``import snnkart`` and headless training never load it.
 The static parts (background, metre grid, walls, panel title) are drawn once into a surface;
