@@ -2,8 +2,8 @@
 
 The keys are polled every step, so holding a key keeps acting. W/A/S/D drive (grid: up, left,
 down, right; gazebo: accelerate, turn left, brake, turn right; steer: throttle, steer left,
-brake, steer right), Space also brakes in gazebo and steer, R restarts the episode and Esc or
-closing the window quits; the keys are also shown at the bottom of the window. When an episode
+brake, steer right), Space also brakes in gazebo and steer, R restarts the episode, P saves a
+screenshot (:mod:`snnkart.envs.overlay`) and Esc or closing the window quits; the keys are also shown at the bottom of the window. When an episode
 ends, one line with its outcome and return is printed and a new episode starts; standing still
 is printed once per spell, not again for each episode that ends because no key was pressed.
 
@@ -121,7 +121,7 @@ def run_play(
     env = make(name, track=track, render_mode="human")
     kart = env.unwrapped
     assert isinstance(kart, KartEnv)
-    help_line = f"{KEY_HELP[name]}; R restart, Esc quit"
+    help_line = f"{KEY_HELP[name]}; R restart, P screenshot, Esc quit"
     kart.overlays.append(lambda surface: draw_key_help(surface, help_line))
     episodes, idle = 0, False  # idle: stood still, no key since; say it once per spell
     try:
@@ -163,6 +163,8 @@ def _poll() -> tuple[str, Keys]:
             return "quit", Keys(False, False, False, False, False)
         if event.type == pygame.KEYDOWN and event.key == pygame.K_r:
             command = "restart"
+        if event.type == pygame.KEYDOWN and event.key == pygame.K_p:
+            pygame.event.post(event)  # the window saves the screenshot (snnkart.envs.overlay)
     held = pygame.key.get_pressed()
     keys = Keys(
         w=held[pygame.K_w],

@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from snnkart.envs.components import select_components
 from snnkart.envs.config import EnvConfig
 from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE, RENDER_FPS
 from snnkart.envs.geodesic import geodesic_field
@@ -91,10 +92,12 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             self.track.time_limit_s * self._time_limit_factor() / DT
         )
 
-        self.observation_layout = observation_layout(lidar.n_rays, self._kinematic_fields())
-        self.observation_space: spaces.Box = observation_space(self.observation_layout)
-        self._obs_dim = int(self.observation_space.shape[0])
+        own = observation_layout(lidar.n_rays, self._kinematic_fields())
+        self._obs_dim = sum(f.size for f in own)  # the env's own layout's (the default)
         self.action_space = self._make_action_space()
+        self._select = select_components(self, own, self.config.observation)  # None: own
+        self.observation_layout = self._select.layout if self._select else own
+        self.observation_space: spaces.Box = observation_space(self.observation_layout)
 
         world = build_world(
             self._segments, self.track.checkpoints, self._on_wall, self._on_checkpoint
@@ -190,7 +193,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         x0, y0, speed0 = self._x, self._y, self.speed_m_s
         align0, align0_cp = self._align, self._geo_k  # set by the last _observe()
         self._apply_action(self._sim2real.act(action))
-        self._touched_wall = False
+        self._last_action, self._touched_wall = action, False  # before _observe: previous_action
         self._space.step(DT)
         self._x, self._y = self._body.position
         self._after_physics()
@@ -219,7 +222,6 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         truncated = not terminated and self._steps >= self.max_episode_steps
         self._needs_reset = terminated or truncated
         reward = float(sum(terms.values()))
-        self._last_action = action
         self._last_terms = terms
         self._episode_return += reward
 
@@ -249,10 +251,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._heading = start.heading if self.egocentric else 0.0
         self._from_spawn = start.next_cp == 0
         body = self._body
-        body.position = (self._x, self._y)
-        body.angle = self._heading
-        body.velocity = (0.0, 0.0)
-        body.angular_velocity = 0.0
+        body.position, body.angle = (self._x, self._y), self._heading
+        body.velocity, body.angular_velocity = (0.0, 0.0), 0.0
         self._space.reindex_shapes_for_body(body)
         self._reset_vehicle()
         self._stand_still.restart(self._x, self._y)
@@ -338,7 +338,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         obs[k] = self._align
         obs[k + 1] = math.sin(rel)
         obs[k + 2] = min(dist / self._dist_scale, 1.0)
-        return obs
+        return obs if self._select is None else self._select(obs)
 
     def _info(self, crashed: bool, stood_still: bool) -> dict[str, Any]:
         elapsed = self._steps * DT

@@ -173,6 +173,11 @@ class EnvConfig(_Frozen):
     sim2real: Sim2RealConfig | None = Field(
         None, description="LIDAR noise, beam dropout and actuation delay (None: a perfect robot)"
     )
+    observation: tuple[str, ...] | None = Field(
+        None,
+        description="observation components in order (snnkart.envs.components); "
+        "default: the env's own layout",
+    )
     route_clearance_m: float | None = Field(
         None,
         ge=KART_RADIUS_M,

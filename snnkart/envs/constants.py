@@ -25,6 +25,9 @@ DRAG_PER_STEP: float = 1.005
 
 RENDER_FPS: int = 60
 
+WORLD_SIZE_PX: float = 1000.0
+"""Track coordinates shown on screen: 0 .. 1000 px on each axis."""
+
 
 def px(metres: float) -> float:
     """Convert metres to track pixels."""

@@ -5,7 +5,8 @@ frame. In ``rgb_array`` mode the frame is drawn off screen and returned as an ``
 uint8 array; only pygame's font module is initialised, so no display (and no
 ``SDL_VIDEODRIVER`` setting, which would leak into later windows of the process) is needed.
 In ``human`` mode a window is opened; without a display (Linux with neither ``DISPLAY`` nor
-``WAYLAND_DISPLAY``) the SDL ``dummy`` video driver is used unless one is already chosen.
+``WAYLAND_DISPLAY``) the SDL ``dummy`` video driver is used unless one is already chosen; the
+window carries the HUD of :mod:`snnkart.envs.overlay`, and P saves it as a PNG.
 
 pygame is imported only here, so ``import snnkart`` and headless training never load it.
 The static parts (background, metre grid, walls, panel title) are drawn once into a surface;
@@ -23,7 +24,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 
 from snnkart.envs.config import EnvConfig
-from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE
+from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE, WORLD_SIZE_PX
 from snnkart.envs.tracks import Track
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -71,9 +72,6 @@ class DrawnEnv(Protocol):
     def episode_return(self) -> float: ...
     def describe_action(self, action: Any) -> str: ...
 
-
-WORLD_SIZE_PX = 1000.0
-"""Track coordinates shown on screen: 0 .. 1000 px on each axis."""
 
 PANEL_WIDTH_PX = 360.0
 """Width of the side panel at ``render_scale`` 1."""
@@ -154,6 +152,12 @@ class Renderer:
         self._panel_top = 0  # set by _draw_static, below the panel title
         self._sprites: dict[tuple[Colour, int], pygame.Surface] = {}  # see _ghost_sprite
         self._static = self._draw_static()
+        self._hud: Any = None  # the window's heads-up display (snnkart.envs.overlay)
+        self.screenshots: list[Any] = []  # paths saved with P
+        if human:
+            from snnkart.envs.overlay import Hud
+
+            self._hud = Hud(env, s, self.track_width, self.size[1])
 
     # -- public API ----------------------------------------------------------------------------
 
@@ -167,12 +171,17 @@ class Renderer:
         self._draw_telemetry(frame)
         for overlay in self.env.overlays:  # callables drawing on the frame, e.g. key help
             overlay(frame)
+        if self._hud is not None:
+            self._hud(frame)
         return self._present(frame)
 
     def _present(self, frame: pygame.Surface) -> np.ndarray | None:
         if not self.human:
             return np.ascontiguousarray(pygame.surfarray.array3d(frame).transpose(1, 0, 2))
+        from snnkart.envs.overlay import take_screenshots
+
         pygame.event.pump()
+        self.screenshots += take_screenshots(frame)
         pygame.display.flip()
         assert self._clock is not None
         self._clock.tick(self.env.metadata["render_fps"])
@@ -206,6 +215,8 @@ class Renderer:
             y = self._row(frame, y, line[0], line[1], line[2] if len(line) > 2 else TEXT)
         if bar is not None:
             self._draw_colour_bar(frame, y, bar)
+        if self._hud is not None:
+            self._hud.draw_fps(frame)
         return self._present(frame)
 
     def _ghost_sprite(self, colour: Colour, alpha: int) -> pygame.Surface:

@@ -46,7 +46,7 @@ def revision_mismatch(saved: Any) -> str | None:
     )
 
 
-_ADDED_UNSET = ("route_clearance_m", "sim2real")
+_ADDED_UNSET = ("route_clearance_m", "sim2real", "observation")
 """Env config fields added after revision 3 began; left out of the spec while unset (None),
 so runs made before they existed still match."""
 
@@ -159,6 +159,9 @@ def fit_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
     run on another track or env when it fits, a resumed run may not."""
     name = getattr(env.unwrapped, "env_name", "?")
     obs_dim = int(np.prod(env.observation_space.shape or (0,)))
+    layout = layout_problem(saved, env)  # first: it names the difference
+    if layout:
+        return layout
     if saved.get("obs_dim") != obs_dim:
         return (
             f"the policy takes {saved.get('obs_dim')} observation values but env {name!r} "
@@ -170,3 +173,24 @@ def fit_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
             f"{env.action_space}"
         )
     return None
+
+
+def layout_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
+    """How the observation components of the saved spec differ from ``env``'s, or None.
+    Checked when either names its components (``env_config.observation``); a spec without
+    them means the env's own layout, so two default layouts (of different envs) still fit."""
+    saved_config = saved.get("env_config") or {}
+    mine = getattr(getattr(env.unwrapped, "config", None), "observation", None)
+    if saved_config.get("observation") is None and mine is None:
+        return None
+    theirs = [f[0] for f in saved.get("observation_layout") or []]
+    ours = [f.name for f in getattr(env.unwrapped, "observation_layout", ())]
+    if theirs == ours:
+        return None
+    wanted = saved_config.get("observation")
+    fix = f"env_config.observation = {list(wanted)}" if wanted else "no env_config.observation"
+    return (
+        f"the policy observes [{', '.join(theirs)}] but env "
+        f"{getattr(env.unwrapped, 'env_name', '?')!r} observes [{', '.join(ours)}]; "
+        f"deploy it on an env with {fix}"
+    )
