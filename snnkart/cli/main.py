@@ -16,6 +16,7 @@ from snnkart.cli.export import export
 from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
 from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
+from snnkart.cli.record import record
 from snnkart.cli.replay import replay
 from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
@@ -84,12 +85,15 @@ def play(
     max_steps: Annotated[
         int | None, typer.Option(help="quit after this many steps (demos, tests)")
     ] = None,
+    record: Annotated[
+        Path | None, typer.Option(help="record the steps to this .npz (expert data)")
+    ] = None,
 ) -> None:
     """Drive a kart with the keyboard: W/A/S/D, space to brake, R to reset, Esc to quit."""
     name = _check_env_and_track(env, track)
     from snnkart.cli.play import run_play
 
-    run_play(name, track, max_steps=max_steps, seed=seed)
+    run_play(name, track, max_steps=max_steps, seed=seed, record=record)
 
 
 @app.command()
@@ -372,6 +376,7 @@ def deploy(
 
 
 app.command()(export)
+app.command()(record)
 app.command()(replay)
 app.command()(report)
 app.command()(sweep)
