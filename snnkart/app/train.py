@@ -31,6 +31,13 @@ def run_training(
         f"({cfg.action_mode}), {cfg.total_steps:,} steps{rounded}, seed {cfg.seed} -> {run_dir}"
         + (f" (resuming at step {trainer.progress.global_step:,})" if resume else "")
     )
+    if trainer.bc is not None:
+        bc = trainer.bc
+        reporter.message(
+            f"behaviour cloning of {bc['data']} ({bc['steps']:,} steps, {bc['episodes']} "
+            f"episodes of {bc['driver']}): actor loss {bc['actor_loss'][0]:.3f} -> "
+            f"{bc['actor_loss'][-1]:.3f} in {bc['epochs']} epochs; summary in bc.json"
+        )
     before = trainer.resumed_length
     if before is not None and before != cfg.total_steps:
         reporter.message(

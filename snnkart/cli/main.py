@@ -185,6 +185,10 @@ def train(
         typer.Option("--set", "-s", help=_SET_HELP),
     ] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
+    pretrain_bc: Annotated[
+        Path | None, typer.Option(help="warm-start by behaviour cloning this recording first")
+    ] = None,
+    bc_epochs: Annotated[int | None, typer.Option(help="--pretrain-bc: epochs of cloning")] = None,
     force: ForceOpt = False,
 ) -> None:
     """Train an ann, snn or sdnn policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
@@ -194,7 +198,7 @@ def train(
 
     overrides = {
         "env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
-        "action_mode": action_mode,
+        "action_mode": action_mode, **_bc_overrides(pretrain_bc, bc_epochs),
     }  # fmt: skip
     run_dir = out or Path("runs")
     try:
@@ -212,6 +216,15 @@ def train(
     except SnnkartError as exc:
         fail(str(exc))
     raise typer.Exit(code)
+
+
+def _bc_overrides(data: Path | None, epochs: int | None) -> dict[str, object]:
+    """The ``bc`` config keys that ``--pretrain-bc`` and ``--bc-epochs`` set."""
+    if data is None:
+        if epochs is not None:
+            fail("--bc-epochs needs --pretrain-bc DATA.npz")
+        return {}
+    return {"bc.data": str(data), "bc.epochs": epochs}
 
 
 def _write_failure(exc: Exception, run_dir: Path) -> str:

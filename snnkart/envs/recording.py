@@ -47,7 +47,16 @@ RECORDING_SCHEMA = "snnkart/recording/v1"
 RECORDING_GAMMA = 0.995
 """Discount of the recorded ``returns`` (PPO's default ``ppo.gamma``); a user of another gamma
 recomputes them from ``rewards`` with :func:`returns_to_go`."""
-ARRAYS = ("obs", "actions", "rewards", "terminated", "truncated", "returns", "episode_starts", "seeds")
+ARRAYS = (
+    "obs",
+    "actions",
+    "rewards",
+    "terminated",
+    "truncated",
+    "returns",
+    "episode_starts",
+    "seeds",
+)
 
 
 class RecordingError(SnnkartError, ValueError):
@@ -89,7 +98,9 @@ class Recording:
         n = len(self.obs)
         for name in ("actions", "rewards", "terminated", "truncated", "returns"):
             if len(getattr(self, name)) != n:
-                raise RecordingError(f"recording: {name} has {len(getattr(self, name))} rows, obs {n}")
+                raise RecordingError(
+                    f"recording: {name} has {len(getattr(self, name))} rows, obs {n}"
+                )
         if len(self.seeds) != len(self.episode_starts):
             raise RecordingError("recording: one seed per episode expected")
 
@@ -114,7 +125,9 @@ class Recording:
         """Read a recording; a file that is not one says what it lacks."""
         p = Path(path)
         if not p.is_file():
-            raise RecordingError(f"recording {p} does not exist; make one with snnkart record or snnkart play --record")
+            raise RecordingError(
+                f"recording {p} does not exist; make one with snnkart record or snnkart play --record"
+            )
         try:
             with np.load(p, allow_pickle=False) as data:
                 meta = json.loads(str(data["meta"]))
@@ -122,10 +135,14 @@ class Recording:
         except (OSError, ValueError, KeyError) as exc:
             raise RecordingError(f"{p} is not a snnkart recording ({exc})") from None
         if meta.get("schema") != RECORDING_SCHEMA:
-            raise RecordingError(f"{p}: schema {meta.get('schema')!r}, this snnkart reads {RECORDING_SCHEMA}")
+            raise RecordingError(
+                f"{p}: schema {meta.get('schema')!r}, this snnkart reads {RECORDING_SCHEMA}"
+            )
         return cls(meta=meta, **arrays)
 
-    def check(self, spec: dict[str, Any], source: str = "recording", *, any_track: bool = False) -> None:
+    def check(
+        self, spec: dict[str, Any], source: str = "recording", *, any_track: bool = False
+    ) -> None:
         """Refuse (one line naming the difference) unless this recording was made in an env
         with ``spec``; ``any_track``: another track is fine (behaviour cloning), another env,
         action mode, observation layout or env config is not."""
@@ -150,14 +167,18 @@ def recording_differences(
         if saved.get(key) != spec[key]:
             diffs.append(f"{key.replace('_', ' ')} {saved.get(key)} vs {spec[key]}")
     names = [
-        ", ".join(f"{f[0]}[{f[1]}]" if f[1] != 1 else str(f[0]) for f in s.get("observation_layout") or [])
+        ", ".join(
+            f"{f[0]}[{f[1]}]" if f[1] != 1 else str(f[0]) for f in s.get("observation_layout") or []
+        )
         for s in (saved, spec)
     ]
     if saved.get("observation_layout") != spec["observation_layout"] and not diffs:
         diffs.append(f"observation layout ({names[0]}) vs ({names[1]})")
     changed = _changed_keys(saved.get("env_config") or {}, spec["env_config"])
     if changed and not diffs:  # another env has another config anyway
-        diffs.append(f"env config differs in {', '.join(changed[:4])}{' ...' if len(changed) > 4 else ''}")
+        diffs.append(
+            f"env config differs in {', '.join(changed[:4])}{' ...' if len(changed) > 4 else ''}"
+        )
     if not any_track and saved.get("track_sha256") != spec["track_sha256"]:
         diffs.append(f"track {saved.get('track')} vs {spec['track']}")
     return diffs
@@ -203,7 +224,9 @@ class RecordingWrapper(gym.Wrapper):  # type: ignore[type-arg]
         if self._obs is None:
             raise RecordingError("reset the env before stepping it")
         obs, reward, terminated, truncated, info = self.env.step(action)
-        self._rows.append((self._obs, np.asarray(action).copy(), float(reward), bool(terminated), bool(truncated)))
+        self._rows.append(
+            (self._obs, np.asarray(action).copy(), float(reward), bool(terminated), bool(truncated))
+        )
         self._obs = np.asarray(obs, dtype=np.float32).copy()
         if terminated or truncated:
             self._end(_outcome(info, terminated))
@@ -231,21 +254,37 @@ class RecordingWrapper(gym.Wrapper):  # type: ignore[type-arg]
         self._end("stopped")
         if not self._rows:
             raise RecordingError("nothing was recorded: no step was taken")
-        obs, actions, rewards, terminated, truncated = (np.array(c) for c in zip(*self._rows, strict=True))
+        obs, actions, rewards, terminated, truncated = (
+            np.array(c) for c in zip(*self._rows, strict=True)
+        )
         starts = np.array([e["start"] for e in self._episodes], dtype=np.int64)
         ends = [*starts[1:].tolist(), len(rewards)]
         episodes = [
-            {"seed": e["seed"], "length": end - e["start"], "end": e["end"],
-             "return": float(rewards[e["start"]:end].sum())}
+            {
+                "seed": e["seed"],
+                "length": end - e["start"],
+                "end": e["end"],
+                "return": float(rewards[e["start"] : end].sum()),
+            }
             for e, end in zip(self._episodes, ends, strict=True)
         ]
-        meta = {"schema": RECORDING_SCHEMA, "driver": self.driver, "env_spec": self.spec_,
-                "env_spec_hash": spec_hash(self.spec_), "gamma": RECORDING_GAMMA,
-                "episodes": episodes}
+        meta = {
+            "schema": RECORDING_SCHEMA,
+            "driver": self.driver,
+            "env_spec": self.spec_,
+            "env_spec_hash": spec_hash(self.spec_),
+            "gamma": RECORDING_GAMMA,
+            "episodes": episodes,
+        }
         discrete = np.issubdtype(actions.dtype, np.integer)
         return Recording(
-            meta, obs.astype(np.float32), actions.astype(np.int64 if discrete else np.float32),
-            rewards.astype(np.float32), terminated, truncated, starts,
+            meta,
+            obs.astype(np.float32),
+            actions.astype(np.int64 if discrete else np.float32),
+            rewards.astype(np.float32),
+            terminated,
+            truncated,
+            starts,
             np.array([e["seed"] for e in self._episodes], dtype=np.int64),
         )
 
@@ -267,7 +306,9 @@ def replay_observations(recording: Recording, env: gym.Env) -> np.ndarray:
     recording.check(env_spec(env.unwrapped), "the recording")  # type: ignore[arg-type]
     out = np.zeros_like(recording.obs)
     ends = [*recording.episode_starts[1:].tolist(), len(recording.obs)]
-    for start, end, seed in zip(recording.episode_starts.tolist(), ends, recording.seeds.tolist(), strict=True):
+    for start, end, seed in zip(
+        recording.episode_starts.tolist(), ends, recording.seeds.tolist(), strict=True
+    ):
         obs, _ = env.reset(seed=int(seed))
         for t in range(start, end):
             out[t] = obs

@@ -29,7 +29,9 @@ def record_driver(
     """``episodes`` episodes of ``driver`` in ``env`` on ``track`` with seeds ``seed, seed+1,
     ...``, recorded step by step."""
     if driver not in DRIVERS:
-        raise UsageError(f"unknown driver {driver!r}{did_you_mean(driver, DRIVERS)}; drivers: {', '.join(DRIVERS)}")
+        raise UsageError(
+            f"unknown driver {driver!r}{did_you_mean(driver, DRIVERS)}; drivers: {', '.join(DRIVERS)}"
+        )
     if episodes < 1:
         raise UsageError(f"--episodes must be >= 1, not {episodes}")
     base = make_env(env, track, action_mode=action_mode, config=env_config)

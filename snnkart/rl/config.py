@@ -25,6 +25,7 @@ from pydantic import (
 from snnkart.envs import resolve_env_name
 from snnkart.envs.spec import make_env
 from snnkart.errors import ConfigError, did_you_mean
+from snnkart.rl.bc_config import BCConfig
 from snnkart.rl.config_defaults import ENV_POLICY_DEFAULTS, POLICY_DEFAULTS
 from snnkart.rl.config_names import renamed_keys
 from snnkart.rl.sdnn_config import SDNNConfig
@@ -219,6 +220,7 @@ class TrainConfig(BaseModel):
     run: RunConfig = RunConfig()
     stop: StopConfig = StopConfig()
     eval: EvalConfig = EvalConfig()
+    bc: BCConfig | None = Field(None, description="behaviour-cloning warm start (off: none)")
 
     @model_validator(mode="before")
     @classmethod
