@@ -7,7 +7,8 @@ log-likelihood (the mean, and the learned log std) for continuous ones. The crit
 to the recorded returns-to-go (recomputed with the run's ``ppo.gamma``) by mean squared error.
 The observation normaliser starts from the recording's mean and variance, so the policy sees
 the observations it was cloned on. A stateful SNN actor (``snn.stateful``) is refused: its
-state runs across steps and cloning it would need whole-episode sequences.
+state runs across steps and cloning it would need whole-episode sequences (the config
+refuses it; :func:`behaviour_clone` too, for a policy built by hand).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import torch
 from snnkart.envs.recording import Recording, returns_to_go
 from snnkart.errors import ConfigError
 from snnkart.io import write_json
-from snnkart.rl.config import TrainConfig
+from snnkart.rl.config import STATEFUL_BC, TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.policies import ActorCritic
 from snnkart.rl.rollout import normalize_obs
@@ -48,10 +49,7 @@ def behaviour_clone(
     bc = cfg.bc
     assert bc is not None
     if getattr(policy, "stateful", False):
-        raise ConfigError(
-            "--pretrain-bc: a stateful SNN actor (snn.stateful = true) cannot be behaviour-cloned "
-            "(its state runs across steps); train it without --pretrain-bc or set snn.stateful = false"
-        )
+        raise ConfigError(STATEFUL_BC)
     if cfg.ppo.norm_obs:
         obs_rms.update(rec.obs.astype(np.float64))
     raw = torch.as_tensor(rec.obs, dtype=torch.float32)
