@@ -67,6 +67,7 @@ def test_continuous_actions_are_cloned_by_gaussian_likelihood(tmp_path: Path) ->
     assert summary["accuracy"] == [None] * 6
 
 
+@pytest.mark.slow  # ~25 s alone, ~100 s on a busy machine
 def test_the_cloned_policy_drives(grid_data: Path) -> None:
     """BC only (no PPO): pursuit data, grid/small_S. Measured at this commit: success 0.0 and
     mean return -3.5 before cloning, 0.4 and +9.1 after 40 epochs (5 episodes, seeds 500+)."""
