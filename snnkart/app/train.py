@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import signal
 from pathlib import Path
+from typing import Any
 
 from snnkart.app.reporter import Reporter
 from snnkart.envs.tracks import track_label
@@ -32,12 +33,7 @@ def run_training(
         + (f" (resuming at step {trainer.progress.global_step:,})" if resume else "")
     )
     if trainer.bc is not None:
-        bc = trainer.bc
-        reporter.message(
-            f"behaviour cloning of {bc['data']} ({bc['steps']:,} steps, {bc['episodes']} "
-            f"episodes of {bc['driver']}): actor loss {bc['actor_loss'][0]:.3f} -> "
-            f"{bc['actor_loss'][-1]:.3f} in {bc['epochs']} epochs; summary in bc.json"
-        )
+        reporter.message(_cloned(trainer.bc))
     before = trainer.resumed_length
     if before is not None and before != cfg.total_steps:
         reporter.message(
@@ -71,3 +67,12 @@ def run_training(
         f"{result.global_step:,}. Resume with: snnkart train --resume --out {run_dir}"
     )
     return 128 + signum
+
+
+def _cloned(bc: dict[str, Any]) -> str:
+    """One line on the behaviour cloning that warm-started a run (:mod:`snnkart.rl.bc`)."""
+    return (
+        f"behaviour cloning of {bc['data']} ({bc['steps']:,} steps, {bc['episodes']} "
+        f"episodes of {bc['driver']}): actor loss {bc['actor_loss'][0]:.3f} -> "
+        f"{bc['actor_loss'][-1]:.3f} in {bc['epochs']} epochs; summary in bc.json"
+    )

@@ -151,6 +151,12 @@ _SET_HELP = (
 )
 
 
+_PretrainBCOption = Annotated[
+    Path | None, typer.Option(help="warm-start by behaviour cloning this recording first")
+]
+_BCEpochsOption = Annotated[int | None, typer.Option(help="--pretrain-bc: epochs of cloning")]
+
+
 @app.command()
 def train(
     env: Annotated[
@@ -180,15 +186,10 @@ def train(
         typer.Option("--out", "-o", help="run directory (default: runs/ENV-POLICY-TRACK-sSEED)"),
     ] = None,
     config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config file")] = None,
-    set_: Annotated[
-        list[str] | None,
-        typer.Option("--set", "-s", help=_SET_HELP),
-    ] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", "-s", help=_SET_HELP)] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
-    pretrain_bc: Annotated[
-        Path | None, typer.Option(help="warm-start by behaviour cloning this recording first")
-    ] = None,
-    bc_epochs: Annotated[int | None, typer.Option(help="--pretrain-bc: epochs of cloning")] = None,
+    pretrain_bc: _PretrainBCOption = None,
+    bc_epochs: _BCEpochsOption = None,
     force: ForceOpt = False,
 ) -> None:
     """Train an ann, snn or sdnn policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""

@@ -109,8 +109,7 @@ def run_play(
         seed: seed of the first episode.
         on_step: called with the step index at the start of every step, before the events
             are read (tests post key events from it).
-        record: write every step to this recording (:mod:`snnkart.envs.recording`) when
-            the window closes; each episode is reset with a seed of its own, so it replays.
+        record: save every step to this recording (:mod:`snnkart.envs.recording`) at the end.
 
     Returns:
         The number of episodes that ended (finish, crash, standing still or time limit);
