@@ -114,3 +114,25 @@ def test_a_stateful_snn_is_refused() -> None:
     with pytest.raises(ConfigError, match="cannot be behaviour-cloned"):
         load_config(None, keys)
     assert np.isfinite(load_config(None, {**keys, "bc.data": None}).seed)
+
+
+def test_train_pretrain_bc_on_the_command_line(grid_data: Path, tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from snnkart.cli.main import app
+
+    sets = [x for k, v in TINY.items() for x in ("--set", f"{k}={str(v).lower()}")]
+    base = ["train", "--env", "steer", "--policy", "ann", "--steps", "128", *sets]
+    result = CliRunner().invoke(app, [*base, "--bc-epochs", "3", "--out", str(tmp_path / "a")])
+    assert result.exit_code == 2 and "--bc-epochs needs --pretrain-bc" in result.output
+    refused = tmp_path / "refused"
+    result = CliRunner().invoke(app, [*base, "--pretrain-bc", str(grid_data), "--out", str(refused)])  # fmt: skip
+    assert result.exit_code == 2, result.output
+    assert "was recorded in another env (env grid vs steer" in result.output
+    assert not (refused / "config.toml").exists()  # nothing to resume: the same command works
+    run = tmp_path / "grid"
+    args = ["--env", "grid", "--pretrain-bc", str(grid_data), "--bc-epochs", "1", "--out", str(run)]  # fmt: skip
+    result = CliRunner().invoke(app, [*base, *args])
+    assert result.exit_code == 0, result.output
+    assert "behaviour cloning of" in result.output and "in 1 epochs" in result.output
+    assert json.loads((run / "bc.json").read_text())["epochs"] == 1

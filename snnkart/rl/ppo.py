@@ -95,7 +95,6 @@ class Trainer:
         self.envs, self.karts = self.rollout.envs, self.rollout.karts
         self.env0 = self.karts[0]
         self.cfg = cfg = resolved_env_config(cfg, self.env0)  # config.toml: the whole env
-        self.out.write_config(cfg)
         self.evals = PeriodicEval(cfg, self.out)
         self.spec = env_spec(self.env0)
         torch.manual_seed(cfg.seed)
@@ -111,6 +110,7 @@ class Trainer:
         self.bc = warm_start(
             self.policy, self.obs_rms, cfg, self.spec, self.run_dir, opened is None
         )
+        self.out.write_config(cfg)  # after cloning: a recording refused leaves no run behind
         self.progress = Progress()
         self.rng = np.random.default_rng(cfg.seed)
         if opened is not None:
