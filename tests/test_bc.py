@@ -136,3 +136,10 @@ def test_train_pretrain_bc_on_the_command_line(grid_data: Path, tmp_path: Path) 
     assert result.exit_code == 0, result.output
     assert "behaviour cloning of" in result.output and "in 1 epochs" in result.output
     assert json.loads((run / "bc.json").read_text())["epochs"] == 1
+
+
+def test_a_misspelled_bc_key_is_named_with_the_right_one() -> None:
+    with pytest.raises(ConfigError, match=r"unknown key 'bc.epoch' .*did you mean 'bc.epochs'"):
+        load_config(None, {"bc.data": "x.npz"}, ["bc.epoch=3"])
+    with pytest.raises(ConfigError, match=r"bc.data: Field required"):
+        load_config(None, {"bc.epochs": 3})

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 import gymnasium as gym
 import tomli_w
@@ -349,7 +349,9 @@ def config_keys() -> list[str]:
     """Every key a config takes, dotted (``ppo.learning_rate``, ``seed``)."""
     keys = []
     for name, info in TrainConfig.model_fields.items():
-        section = info.annotation
+        section = next(
+            (a for a in get_args(info.annotation) if a is not type(None)), info.annotation
+        )
         if isinstance(section, type) and issubclass(section, BaseModel):
             keys += [f"{name}.{key}" for key in section.model_fields]
         else:
