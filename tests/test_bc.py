@@ -109,11 +109,27 @@ def test_a_recording_of_another_env_is_refused_before_training(
         Trainer(cfg, tmp_path / "run")
 
 
-def test_a_stateful_snn_is_refused() -> None:
-    keys = {"policy": "snn", "snn.stateful": True, "snn.encoding": "current", "bc.data": "x.npz"}
-    with pytest.raises(ConfigError, match="cannot be behaviour-cloned"):
-        load_config(None, keys)
-    assert np.isfinite(load_config(None, {**keys, "bc.data": None}).seed)
+def test_a_stateful_snn_is_cloned_on_windows(short_data: Path) -> None:
+    keys = {"snn.stateful": True, "snn.encoding": "current", "bc.batch_size": 128}
+    cfg, net, rms = _clone(short_data, "snn", 8, **keys)
+    assert getattr(net, "stateful", False)
+    summary = behaviour_clone(net, rms, cfg, Recording.load(short_data))
+    assert summary["actor_loss"][-1] < 0.9 * summary["actor_loss"][0], summary["actor_loss"]
+    assert summary["accuracy"] == [None] * 8
+    from snnkart.rl.bc import WINDOW, _batches
+
+    rows, extra, kept = next(_batches(net, Recording.load(short_data), 128, torch.Generator()))
+    steps = rows.reshape(WINDOW, -1)  # time-major: row s * E + e is step s of window e
+    assert (steps.diff(dim=0) == 1).all() and steps.shape[1] == extra["state"].shape[0] == 2
+    assert extra["starts"][0].tolist() == [1.0, 1.0] and not extra["starts"][1:].any()
+    assert int(kept.sum()) == (WINDOW - 16) * 2
+
+
+def test_windows_cover_every_step_of_long_enough_episodes() -> None:
+    from snnkart.rl.bc import _windows
+
+    w = _windows(np.array([0, 10, 13]), 20, 4)  # episodes of 10, 3 and 7 steps
+    assert w.tolist() == [[0, 1, 2, 3], [4, 5, 6, 7], [6, 7, 8, 9], [13, 14, 15, 16], [16, 17, 18, 19]]  # fmt: skip
 
 
 def test_train_pretrain_bc_on_the_command_line(grid_data: Path, tmp_path: Path) -> None:

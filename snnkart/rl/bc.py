@@ -6,13 +6,13 @@ distribution: cross-entropy of the logits for discrete actions, the Gaussian neg
 log-likelihood (the mean, and the learned log std) for continuous ones. The critic is fitted
 to the recorded returns-to-go (recomputed with the run's ``ppo.gamma``) by mean squared error.
 The observation normaliser starts from the recording's mean and variance, so the policy sees
-the observations it was cloned on. A stateful SNN actor (``snn.stateful``) is refused: its
-state runs across steps and cloning it would need whole-episode sequences (the config
-refuses it; :func:`behaviour_clone` too, for a policy built by hand).
+the observations it was cloned on. A stateful SNN actor (``snn.stateful``), whose state runs
+across env steps, is cloned on windows of consecutive steps with a burn-in (:data:`WINDOW`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +22,7 @@ import torch
 from snnkart.envs.recording import Recording, returns_to_go
 from snnkart.errors import ConfigError
 from snnkart.io import write_json
-from snnkart.rl.config import STATEFUL_BC, TrainConfig
+from snnkart.rl.config import TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.policies import ActorCritic
 from snnkart.rl.rollout import normalize_obs
@@ -48,8 +48,6 @@ def behaviour_clone(
     the recording's statistics. Returns the summary (losses per epoch) that the run keeps."""
     bc = cfg.bc
     assert bc is not None
-    if getattr(policy, "stateful", False):
-        raise ConfigError(STATEFUL_BC)
     if cfg.ppo.norm_obs:
         obs_rms.update(rec.obs.astype(np.float64))
     raw = torch.as_tensor(rec.obs, dtype=torch.float32)
@@ -61,20 +59,21 @@ def behaviour_clone(
     history: dict[str, list[Any]] = {"actor_loss": [], "value_loss": [], "accuracy": []}
     policy.train()
     for _ in range(bc.epochs):
-        sums = np.zeros(2)
-        for idx in torch.randperm(len(obs), generator=gen).split(bc.batch_size):
-            out = policy(obs[idx], raw[idx], action=actions[idx])
-            actor_loss = -out.log_prob.mean()
-            value_loss = ((out.value - returns[idx]) ** 2).mean()
+        sums = np.zeros(3)
+        for rows, extra, kept in _batches(policy, rec, bc.batch_size, gen):
+            out = policy(obs[rows], raw[rows], action=actions[rows], **extra)
+            actor_loss = -out.log_prob[kept].mean()
+            value_loss = ((out.value - returns[rows])[kept] ** 2).mean()
             loss = actor_loss + (bc.value_coef * value_loss if bc.value else 0.0)
             optimizer.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(policy.parameters(), cfg.ppo.max_grad_norm)
             optimizer.step()
             policy.clamp_parameters()
-            sums += len(idx) * np.array([actor_loss.item(), value_loss.item()])
-        history["actor_loss"].append(float(sums[0] / len(obs)))
-        history["value_loss"].append(float(sums[1] / len(obs)))
+            n = int(kept.sum())
+            sums += [n * actor_loss.item(), n * value_loss.item(), n]
+        history["actor_loss"].append(float(sums[0] / sums[2]))
+        history["value_loss"].append(float(sums[1] / sums[2]))
         history["accuracy"].append(_accuracy(policy, obs, raw, actions))
     return {
         "data": str(bc.data), "sha256": _sha256(Path(bc.data)), "steps": len(obs),
@@ -83,12 +82,56 @@ def behaviour_clone(
     }  # fmt: skip
 
 
+WINDOW, BURN_IN = 64, 16
+"""A stateful actor is cloned on windows of ``WINDOW`` consecutive steps of one episode, run
+from a zero state at the window's first step; the first ``BURN_IN`` steps of each window only
+build up the state (their loss is not counted), as in R2D2's burn-in."""
+
+
+def _batches(
+    policy: ActorCritic, rec: Recording, batch_size: int, gen: torch.Generator
+) -> Iterator[tuple[torch.Tensor, dict[str, torch.Tensor], torch.Tensor]]:
+    """One epoch's minibatches: (the recording's rows, the policy's extra arguments, which
+    rows count in the loss). Shuffled steps; for a stateful actor, shuffled windows (rows
+    time-major, ``s * E + e``) with their zero initial state and ``starts``."""
+    n = len(rec.obs)
+    if not getattr(policy, "stateful", False):
+        for idx in torch.randperm(n, generator=gen).split(batch_size):
+            yield idx, {}, torch.ones(len(idx), dtype=torch.bool)
+        return
+    windows = torch.as_tensor(_windows(rec.episode_starts, n, WINDOW))
+    if len(windows) == 0:
+        raise ConfigError(f"--pretrain-bc: a stateful actor needs episodes of at least {WINDOW} steps")  # fmt: skip
+    per_batch = max(1, batch_size // WINDOW)
+    for pick in torch.randperm(len(windows), generator=gen).split(per_batch):
+        e = len(pick)
+        starts = torch.zeros(WINDOW, e)
+        starts[0] = 1.0
+        kept = (torch.arange(WINDOW) >= BURN_IN).repeat_interleave(e)
+        state = policy.initial_state(e)  # type: ignore[operator]
+        yield windows[pick].T.reshape(-1), {"state": state, "starts": starts}, kept
+
+
+def _windows(episode_starts: np.ndarray, n: int, length: int) -> np.ndarray:
+    """``[W, length]`` step indices: every episode cut into windows of ``length`` steps (the
+    last one ending at the episode's end, overlapping the one before); shorter episodes are
+    left out."""
+    ends = [*episode_starts[1:].tolist(), n]
+    out = []
+    for a, b in zip(episode_starts.tolist(), ends, strict=True):
+        firsts = list(range(a, b - length + 1, length))
+        if firsts and firsts[-1] + length < b:
+            firsts.append(b - length)
+        out += [np.arange(f, f + length) for f in firsts]
+    return np.array(out, dtype=np.int64).reshape(-1, length)
+
+
 def _accuracy(
     policy: ActorCritic, obs: torch.Tensor, raw: torch.Tensor, actions: torch.Tensor
 ) -> float | None:
     """Share of steps whose deterministic (argmax) action is the recorded one (discrete;
-    None for continuous actions)."""
-    if not policy.discrete:
+    None for continuous actions and stateful actors, whose action depends on the steps before)."""
+    if not policy.discrete or getattr(policy, "stateful", False):
         return None
     return float((policy.act_deterministic(obs, raw) == actions).float().mean().item())
 

@@ -40,10 +40,6 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 CONFIG_SCHEMA = "snnkart/train-config/v1"
-STATEFUL_BC = (
-    "a stateful SNN actor (snn.stateful = true) cannot be behaviour-cloned (its state runs "
-    "across steps); train it without --pretrain-bc (bc.data) or set snn.stateful = false"
-)
 
 
 class _Section(BaseModel):
@@ -266,8 +262,6 @@ class TrainConfig(BaseModel):
             )
         if self.snn.stateful and self.policy == "snn":
             stateful_problem(self)
-            if self.bc is not None:
-                raise ValueError(STATEFUL_BC)
         return self
 
     @property
