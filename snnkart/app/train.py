@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import signal
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from snnkart.app.reporter import Reporter
 from snnkart.envs.tracks import track_label
@@ -34,6 +34,8 @@ def run_training(
         f"({cfg.action_mode}), {cfg.total_steps:,} steps{rounded}, seed {cfg.seed} -> {run_dir}"
         + (f" (resuming at step {trainer.progress.global_step:,})" if resume else "")
     )
+    if trainer.bc is not None:
+        reporter.message(_cloned(trainer.bc))
     before = trainer.resumed_length
     if before is not None and before != cfg.total_steps:
         reporter.message(
@@ -87,3 +89,12 @@ def _trainer(
             trainer.close()
             raise
     return trainer
+
+
+def _cloned(bc: dict[str, Any]) -> str:
+    """One line on the behaviour cloning that warm-started a run (:mod:`snnkart.rl.bc`)."""
+    return (
+        f"behaviour cloning of {bc['data']} ({bc['steps']:,} steps, {bc['episodes']} "
+        f"episodes of {bc['driver']}): actor loss {bc['actor_loss'][0]:.3f} -> "
+        f"{bc['actor_loss'][-1]:.3f} in {bc['epochs']} epochs; summary in bc.json"
+    )

@@ -18,7 +18,12 @@ from typer.core import TyperCommand, TyperGroup, TyperOption
 _RUN, _ANN = "runs/steer-snn", "runs/steer-ann"  # as the README names them
 EXAMPLES: dict[str, tuple[str, ...]] = {
     "": ("snnkart demo", "snnkart train --env grid --policy snn", "snnkart eval --help"),
-    "play": ("snnkart play", "snnkart play --env grid --track small_S"),
+    "play": (
+        "snnkart play",
+        "snnkart play --env grid --track small_S",
+        "snnkart play --env steer --track small_S --record expert.npz",
+    ),
+    "record": ("snnkart record --driver pursuit --env steer --episodes 20 -o steer-pursuit.npz",),
     "demo": ("snnkart demo --out runs/demo", "snnkart demo --steps 60000 --ann-steps 60000"),
     "train": (
         "snnkart train --env grid --policy snn --out runs/grid-snn",
@@ -27,6 +32,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
         "snnkart train --policy ann --set ann.activation=relu",
         "snnkart train --policy sdnn --set sdnn.message_penalty=0.05",
         "snnkart train --env grid --wandb",
+        "snnkart train --pretrain-bc steer-pursuit.npz --bc-epochs 30",
     ),
     "eval": (
         f"snnkart eval {_RUN} --episodes 50",

@@ -16,6 +16,7 @@ from snnkart.cli.export import export
 from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
 from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
+from snnkart.cli.record import record
 from snnkart.cli.replay import replay
 from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
@@ -85,12 +86,15 @@ def play(
     max_steps: Annotated[
         int | None, typer.Option(help="quit after this many steps (demos, tests)")
     ] = None,
+    record: Annotated[
+        Path | None, typer.Option(help="record the steps to this .npz (expert data)")
+    ] = None,
 ) -> None:
     """Drive a kart with the keyboard: W/A/S/D, space to brake, R to reset, Esc to quit."""
     name = _check_env_and_track(env, track)
     from snnkart.cli.play import run_play
 
-    run_play(name, track, max_steps=max_steps, seed=seed)
+    run_play(name, track, max_steps=max_steps, seed=seed, record=record)
 
 
 @app.command()
@@ -148,6 +152,12 @@ _SET_HELP = (
 )
 
 
+_PretrainBCOption = Annotated[
+    Path | None, typer.Option(help="warm-start by behaviour cloning this recording first")
+]
+_BCEpochsOption = Annotated[int | None, typer.Option(help="--pretrain-bc: epochs of cloning")]
+
+
 @app.command()
 def train(
     env: Annotated[
@@ -177,11 +187,10 @@ def train(
         typer.Option("--out", "-o", help="run directory (default: runs/ENV-POLICY-TRACK-sSEED)"),
     ] = None,
     config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config file")] = None,
-    set_: Annotated[
-        list[str] | None,
-        typer.Option("--set", "-s", help=_SET_HELP),
-    ] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", "-s", help=_SET_HELP)] = None,
     resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
+    pretrain_bc: _PretrainBCOption = None,
+    bc_epochs: _BCEpochsOption = None,
     force: ForceOpt = False,
     wandb: Annotated[bool, typer.Option(help="also log to Weights & Biases (extra)")] = False,
 ) -> None:
@@ -190,8 +199,10 @@ def train(
     from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config
 
-    overrides = {"env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
-                 "action_mode": action_mode}  # fmt: skip
+    overrides = {
+        "env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
+        "action_mode": action_mode, **_bc_overrides(pretrain_bc, bc_epochs),
+    }  # fmt: skip
     run_dir = out or Path("runs")
     try:
         cfg = load_config(config, overrides, set_)
@@ -208,6 +219,15 @@ def train(
     except SnnkartError as exc:
         fail(str(exc))
     raise typer.Exit(code)
+
+
+def _bc_overrides(data: Path | None, epochs: int | None) -> dict[str, object]:
+    """The ``bc`` config keys that ``--pretrain-bc`` and ``--bc-epochs`` set."""
+    if data is None:
+        if epochs is not None:
+            fail("--bc-epochs needs --pretrain-bc DATA.npz")
+        return {}
+    return {"bc.data": str(data), "bc.epochs": epochs}
 
 
 def _write_failure(exc: Exception, run_dir: Path) -> str:
@@ -372,6 +392,7 @@ def deploy(
 
 
 app.command()(export)
+app.command()(record)
 app.command()(replay)
 app.command()(report)
 app.command()(sweep)

@@ -14,6 +14,7 @@ functions of :class:`Keys`, so they can be used and tested without pygame.
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, NamedTuple
 
 
@@ -97,6 +98,7 @@ def run_play(
     max_steps: int | None = None,
     seed: int | None = None,
     on_step: Callable[[int], None] | None = None,
+    record: Path | None = None,
 ) -> int:
     """Open a window and drive ``env_name`` on ``track`` with the keyboard until Esc.
 
@@ -107,6 +109,7 @@ def run_play(
         seed: seed of the first episode.
         on_step: called with the step index at the start of every step, before the events
             are read (tests post key events from it).
+        record: save every step to this recording (:mod:`snnkart.envs.recording`) at the end.
 
     Returns:
         The number of episodes that ended (finish, crash, standing still or time limit);
@@ -118,7 +121,7 @@ def run_play(
 
     name = resolve_env_name(env_name)
     to_action = KEY_ACTIONS[name]
-    env = make(name, track=track, render_mode="human")
+    env = _recorded(make(name, track=track, render_mode="human"), record)
     kart = env.unwrapped
     assert isinstance(kart, KartEnv)
     help_line = f"{KEY_HELP[name]}; R restart, P screenshot, Esc quit"
@@ -146,8 +149,26 @@ def run_play(
                 idle = bool(info["stood_still"])
                 env.reset()
     finally:
+        _save(env, record)
         env.close()
     return episodes
+
+
+def _recorded(env: Any, record: Path | None) -> Any:
+    """``env``, wrapped to record every step when ``record`` is given."""
+    if record is None:
+        return env
+    from snnkart.envs.recording import RecordingWrapper
+
+    return RecordingWrapper(env, "human")
+
+
+def _save(env: Any, record: Path | None) -> None:
+    """Write what was recorded (if anything) to ``record`` and say so."""
+    if record is None or not env.recorded_steps:
+        return
+    rec = env.recording().save(record)
+    print(f"recorded {env.recorded_steps:,} steps to {rec}")
 
 
 def _poll() -> tuple[str, Keys]:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 import gymnasium as gym
 import tomli_w
@@ -25,6 +25,7 @@ from pydantic import (
 from snnkart.envs import resolve_env_name
 from snnkart.envs.spec import make_env
 from snnkart.errors import ConfigError, did_you_mean
+from snnkart.rl.bc_config import BCConfig
 from snnkart.rl.config_defaults import ENV_POLICY_DEFAULTS, POLICY_DEFAULTS
 from snnkart.rl.config_names import renamed_keys
 from snnkart.rl.sdnn_config import SDNNConfig
@@ -219,6 +220,7 @@ class TrainConfig(BaseModel):
     run: RunConfig = RunConfig()
     stop: StopConfig = StopConfig()
     eval: EvalConfig = EvalConfig()
+    bc: BCConfig | None = Field(None, description="behaviour-cloning warm start (off: none)")
 
     @model_validator(mode="before")
     @classmethod
@@ -341,7 +343,9 @@ def config_keys() -> list[str]:
     """Every key a config takes, dotted (``ppo.learning_rate``, ``seed``)."""
     keys = []
     for name, info in TrainConfig.model_fields.items():
-        section = info.annotation
+        section = next(
+            (a for a in get_args(info.annotation) if a is not type(None)), info.annotation
+        )
         if isinstance(section, type) and issubclass(section, BaseModel):
             keys += [f"{name}.{key}" for key in section.model_fields]
         else:

@@ -28,6 +28,7 @@ from snnkart import faults
 from snnkart.envs.spec import env_spec, spec_hash
 from snnkart.envs.tracks import embed_track, load_track
 from snnkart.errors import RunError
+from snnkart.rl.bc import warm_start
 from snnkart.rl.buffer import Batch, RolloutBuffer, Sequences, compute_gae, minibatches
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.normalise import RunningMeanStd
@@ -94,7 +95,6 @@ class Trainer:
         self.envs, self.karts = self.rollout.envs, self.rollout.karts
         self.env0 = self.karts[0]
         self.cfg = cfg = resolved_env_config(cfg, self.env0)  # config.toml: the whole env
-        self.out.write_config(cfg)
         self.evals = PeriodicEval(cfg, self.out)
         self.spec = env_spec(self.env0)
         torch.manual_seed(cfg.seed)
@@ -106,6 +106,11 @@ class Trainer:
         self.rate_reg = cfg.snn.rate_reg if cfg.policy == "snn" else 0.0  # snn.rate_reg_warmup
         self.message_penalty = cfg.sdnn.message_penalty if cfg.policy == "sdnn" else 0.0
         self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
+        # behaviour cloning (cfg.bc) of a new run; a resumed run's checkpoint holds the clone
+        self.bc = warm_start(
+            self.policy, self.obs_rms, cfg, self.spec, self.run_dir, opened is None
+        )
+        self.out.write_config(cfg)  # after cloning: a recording refused leaves no run behind
         self.progress = Progress()
         self.rng = np.random.default_rng(cfg.seed)
         if opened is not None:
@@ -114,8 +119,6 @@ class Trainer:
             self.out.trim_metrics(self.progress.iteration)
         self.num_iterations = math.ceil(cfg.total_steps / cfg.batch_size)
         self.metrics_path = self.out.metrics_path
-
-    # -- checkpoints -------------------------------------------------------------------------
 
     def _restore(self, run: OpenedRun) -> None:
         """Take over an opened run's training state: weights (already in ``run.policy``),
@@ -168,8 +171,6 @@ class Trainer:
         }
         return state, meta
 
-    # -- the loop ------------------------------------------------------------------------------
-
     def train(
         self,
         on_iteration: Callable[[dict[str, Any]], None] | None = None,
@@ -178,9 +179,9 @@ class Trainer:
         """Run until ``total_steps`` (or until the ``stop`` rule ends the run); Ctrl-C or
         SIGTERM saves a checkpoint before returning (``self.interrupted_by`` is then the
         signal). The interrupt is taken between env steps; a rollout cut short is dropped, so
-        the checkpoint holds the last whole iteration. ``save_every_iteration`` also writes the latest checkpoint after every
-        iteration, before ``on_iteration`` (for a worker that may be stopped from outside
-        without a signal, as Ray Tune stops its trials)."""
+        the checkpoint holds the last whole iteration. ``save_every_iteration`` also writes the
+        latest checkpoint after every iteration, before ``on_iteration`` (for a worker stopped
+        from outside without a signal, as Ray Tune stops its trials)."""
         buf = self._allocate()
         self.out.open_tensorboard()
         self.rollout.reset(seed=self.cfg.seed + 7919 * self.progress.iteration)
