@@ -223,11 +223,9 @@ def train(
 
 def _bc_overrides(data: Path | None, epochs: int | None) -> dict[str, object]:
     """The ``bc`` config keys that ``--pretrain-bc`` and ``--bc-epochs`` set."""
-    if data is None:
-        if epochs is not None:
-            fail("--bc-epochs needs --pretrain-bc DATA.npz")
-        return {}
-    return {"bc.data": str(data), "bc.epochs": epochs}
+    if data is None and epochs is not None:
+        fail("--bc-epochs needs --pretrain-bc DATA.npz")
+    return {} if data is None else {"bc.data": str(data), "bc.epochs": epochs}
 
 
 def _write_failure(exc: Exception, run_dir: Path) -> str:

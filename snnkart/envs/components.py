@@ -23,15 +23,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from snnkart.envs.constants import WORLD_SIZE_PX
 from snnkart.envs.observation import ObsField
-
-if TYPE_CHECKING:
-    from snnkart.envs.base import KartEnv
 
 COMPONENTS = (
     "lidar", "position", "heading", "velocity", "angular_velocity", "steering", "checkpoint",
@@ -73,10 +70,11 @@ def check_components(names: Sequence[str]) -> tuple[str, ...]:
 
 
 def select_components(
-    env: KartEnv, own: Sequence[ObsField], names: Sequence[str] | None
+    env: Any, own: Sequence[ObsField], names: Sequence[str] | None
 ) -> Selection | None:
-    """The :class:`Selection` of ``names`` for ``env`` whose own layout is ``own``; None for
-    None (the env observes its own layout)."""
+    """The :class:`Selection` of ``names`` for ``env`` (a KartEnv, typed ``Any``: envs.base
+    imports this module) whose own layout is ``own``; None for None (the env observes its own
+    layout)."""
     return None if names is None else Selection(env, own, names)
 
 
@@ -84,7 +82,7 @@ class Selection:
     """Builds the observation of the components ``names`` from the env's own (default)
     observation and state; see the module docstring."""
 
-    def __init__(self, env: KartEnv, own: Sequence[ObsField], names: Sequence[str]) -> None:
+    def __init__(self, env: Any, own: Sequence[ObsField], names: Sequence[str]) -> None:
         self.names = check_components(names)
         starts, at = {}, 0
         for f in own:
@@ -114,7 +112,7 @@ def _slice(lo: int, hi: int) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def _extra(
-    env: KartEnv, own: Sequence[ObsField], name: str
+    env: Any, own: Sequence[ObsField], name: str
 ) -> tuple[ObsField, Callable[[np.ndarray], np.ndarray]]:
     """A component that the env's own layout lacks: its field and how to compute it."""
     if name == "position":
@@ -148,7 +146,7 @@ def _extra(
     )
 
 
-def _previous_action(env: KartEnv) -> tuple[ObsField, Callable[[np.ndarray], np.ndarray]]:
+def _previous_action(env: Any) -> tuple[ObsField, Callable[[np.ndarray], np.ndarray]]:
     if env.action_mode == "discrete":
         n = int(env.action_space.n)  # type: ignore[attr-defined]
 

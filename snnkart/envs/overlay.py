@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from snnkart.envs.constants import PIXELS_PER_METRE
-from snnkart.envs.render import (
+from snnkart.envs.constants import PIXELS_PER_METRE, WORLD_SIZE_PX
+from snnkart.envs.palette import (
     CHECKPOINT_LATER,
     CHECKPOINT_NEXT,
     CHECKPOINT_PASSED,
@@ -46,7 +46,6 @@ from snnkart.envs.render import (
     RAY_HIT,
     TEXT,
     TEXT_DIM,
-    WORLD_SIZE_PX,
     Colour,
 )
 from snnkart.envs.tracks import Track

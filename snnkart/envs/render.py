@@ -25,6 +25,27 @@ import numpy as np
 
 from snnkart.envs.config import EnvConfig
 from snnkart.envs.constants import KART_RADIUS_PX, PIXELS_PER_METRE, WORLD_SIZE_PX
+from snnkart.envs.palette import (  # the colours, shared with envs.overlay
+    BACKGROUND,
+    CHECKPOINT_LATER,
+    CHECKPOINT_NEXT,
+    CHECKPOINT_PASSED,
+    FINISH_DARK,
+    FINISH_LIGHT,
+    GRID,
+    KART,
+    KART_MARK,
+    NEGATIVE,
+    PANEL,
+    PANEL_RULE,
+    POSITIVE,
+    RAY,
+    RAY_HIT,
+    TEXT,
+    TEXT_DIM,
+    WALL,
+    Colour,
+)
 from snnkart.envs.tracks import Track
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -75,28 +96,6 @@ class DrawnEnv(Protocol):
 
 PANEL_WIDTH_PX = 360.0
 """Width of the side panel at ``render_scale`` 1."""
-
-Colour = tuple[int, int, int]
-
-BACKGROUND: Colour = (18, 20, 26)
-GRID: Colour = (27, 30, 38)
-WALL: Colour = (200, 202, 210)
-PANEL: Colour = (29, 32, 41)
-PANEL_RULE: Colour = (62, 66, 80)
-CHECKPOINT_PASSED: Colour = (58, 156, 88)
-CHECKPOINT_NEXT: Colour = (255, 218, 40)
-CHECKPOINT_LATER: Colour = (88, 92, 106)
-FINISH_LIGHT: Colour = (240, 240, 240)
-FINISH_DARK: Colour = (210, 40, 45)
-RAY: Colour = (46, 104, 122)
-RAY_HIT: Colour = (90, 220, 255)
-KART: Colour = (255, 128, 24)
-"""Kart body colour; no other element uses it (tests look for it)."""
-KART_MARK: Colour = (40, 24, 8)
-TEXT: Colour = (226, 229, 236)
-TEXT_DIM: Colour = (138, 144, 160)
-POSITIVE: Colour = (110, 212, 124)
-NEGATIVE: Colour = (238, 104, 92)
 
 
 class ColourBar(NamedTuple):
