@@ -20,7 +20,8 @@ from snnkart.envs.config import EnvConfig
 from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE, RENDER_FPS
 from snnkart.envs.geodesic import geodesic_field
 from snnkart.envs.geometry import nearest_point
-from snnkart.envs.lidar import cast_rays, ray_ends, ray_offsets
+from snnkart.envs.kart_state import KartState
+from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.observation import ObsField, observation_layout, observation_space
 from snnkart.envs.reward import Stall, StandStill, step_terms
 from snnkart.envs.sim2real import Sim2Real
@@ -35,7 +36,7 @@ ACTION_MODES = ("discrete", "continuous")
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
 
 
-class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
+class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
     """Base class; see :class:`GridEnv`, :class:`GazeboEnv` and :class:`SteerEnv`."""
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": RENDER_FPS}  # noqa: RUF012
@@ -355,58 +356,6 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             "position": (self._x, self._y),
             "reward_terms": dict(self._last_terms),
         }
-
-    # -- state for renderers and drivers --------------------------------------------------------
-
-    @property
-    def position(self) -> tuple[float, float]:
-        """Kart centre, px."""
-        return (self._x, self._y)
-
-    @property
-    def heading(self) -> float:
-        """Heading (rad, clockwise on screen from +x); 0 in the grid env."""
-        return self._heading
-
-    @property
-    def next_checkpoint(self) -> int:
-        """Index of the checkpoint to pass next (0-based)."""
-        return self._next_cp
-
-    @property
-    def lap_finished(self) -> bool:
-        return self._finished and self._from_spawn
-
-    @property
-    def elapsed_time(self) -> float:
-        """Simulated seconds since the episode began."""
-        return self._steps * DT
-
-    @property
-    def episode_steps(self) -> int:
-        return self._steps
-
-    @property
-    def lidar_distances(self) -> np.ndarray:
-        """Normalised ray distances of the last observation, in [0, 1] (1 = no hit)."""
-        return self._lidar
-
-    @property
-    def last_action(self) -> Any:
-        return self._last_action
-
-    @property
-    def last_reward_terms(self) -> dict[str, float]:
-        return self._last_terms
-
-    @property
-    def episode_return(self) -> float:
-        return self._episode_return
-
-    @property
-    def lidar_hits(self) -> np.ndarray:
-        """Ray end points of the last observation, px, shape ``[n_rays, 2]``."""
-        return ray_ends(self._x, self._y, self._ray_angles, self._lidar * self._ray_range)
 
     def describe_action(self, action: Any) -> str:
         """Human-readable name of an action (for the side panel)."""
