@@ -55,6 +55,15 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "nir run": ("snnkart nir run policy.nir --input currents.npy --check",),
     "nir manifest": ("snnkart nir manifest model.nir --env steer --dt 1e-4",),
     "ros": ("snnkart ros drive runs/gazebo-snn",),
+    "track": ("snnkart track generate --seed 7 -o track.toml",),
+    "track generate": (
+        "snnkart track generate --seed 7 -o track.toml",
+        "snnkart track generate --seed 3 --kind course --length-m 14 --width-m 1.2 -o c3.toml",
+    ),
+    "track show": (
+        "snnkart track show track.toml -o track.png",
+        "snnkart track show small_S --env gazebo --checkpoint -1 -o small_S.png",
+    ),
     "ros sim": ("snnkart ros sim --policy runs/gazebo-snn",),
     "ros drive": ("snnkart ros drive runs/gazebo-snn/policy.nir --backend lava-sim",),
 }

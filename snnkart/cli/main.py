@@ -21,6 +21,7 @@ from snnkart.cli.report_commands import plot_app, report
 from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
+from snnkart.cli.track import track_app
 from snnkart.errors import CheckpointWriteError, SnnkartError, did_you_mean
 
 app = typer.Typer(
@@ -379,6 +380,7 @@ app.command()(study)
 app.add_typer(plot_app, name="plot")
 app.add_typer(nir_app, name="nir")
 app.add_typer(ros_app, name="ros")
+app.add_typer(track_app, name="track")
 finish_help(app)  # after every command: examples and tidy help for each
 
 

@@ -22,13 +22,16 @@ renderer's 10 m x 10 m world with a margin, and the loader's validation passed.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from snnkart.envs.constants import PIXELS_PER_METRE
-from snnkart.envs.tracks import Track, parse_track
+from snnkart.envs.geodesic import GeodesicField, geodesic_field
+from snnkart.envs.tracks import RANDOM_DESCRIPTION, RANDOM_TRACK, Track, parse_track
 from snnkart.errors import TrackError
 
 WORLD_PX = 1000.0
@@ -175,6 +178,13 @@ def generated_toml(
     ``length_m`` (centreline, metres) and ``width_m`` (corridor, metres) are drawn from the
     seed when not given. The same arguments give the same text on every machine.
     """
+    return track_toml(generated_design(seed, kind, length_m, width_m))
+
+
+def generated_design(
+    seed: int, kind: str = "loop", length_m: float | None = None, width_m: float | None = None
+) -> Design:
+    """The :class:`Design` behind :func:`generated_toml`: the first draw that fits."""
     _check_request(seed, kind, length_m, width_m)
     rng = np.random.default_rng([seed, KINDS.index(kind)])
     for _ in range(MAX_TRIES):
@@ -192,11 +202,10 @@ def generated_toml(
             header=f"Written by snnkart track generate --seed {seed} --kind {kind}.",
         )
         try:
-            text = track_toml(design)
-            parse_track(text, source=design.name)
+            parse_track(track_toml(design), source=design.name)
         except TrackError:
             continue
-        return text
+        return design
     raise TrackError(
         f"no {kind} of {length_m} m with {width_m} m corridors fits the 10 m world after "
         f"{MAX_TRIES} tries (seed {seed}); ask for a shorter track or narrower corridors"
@@ -280,3 +289,38 @@ def _clear(pts: np.ndarray, width: float, closed: bool) -> bool:
             if gap < width + GAP_M:
                 return False
     return True
+
+
+RANDOM_SEEDS = 2**31
+"""Generator seeds a random-track env draws from (``[0, RANDOM_SEEDS)``)."""
+
+
+def random_marker_toml() -> str:
+    """The text of ``snnkart/tracks/random.toml``: the track ``track = "random"`` stands for in
+    checkpoints and manifests (generator seed 0, named ``random``; an env shows it until its
+    first reset)."""
+    design = dataclasses.replace(
+        generated_design(0, "loop"),
+        name=RANDOM_TRACK,
+        description=RANDOM_DESCRIPTION,
+        header="Written by snnkart.envs.trackgen.random_marker_toml; do not edit.",
+    )
+    return track_toml(design)
+
+
+def random_track(seed: int) -> Track:
+    """The track of generator seed ``seed`` as ``track = "random"`` uses it: a loop for an
+    even seed, a course for an odd one, length and width drawn from the seed."""
+    return _random_track(seed)
+
+
+@functools.lru_cache(maxsize=64)
+def _random_track(seed: int) -> Track:
+    return generate_track(seed, KINDS[seed % 2])
+
+
+@functools.lru_cache(maxsize=64)
+def random_route(seed: int, clearance: float) -> GeodesicField:
+    """The geodesic route field of :func:`random_track` ``(seed)`` (cached: an env that meets a
+    track again, as evaluation over a seed range does, reuses it)."""
+    return geodesic_field(random_track(seed), clearance=clearance)
