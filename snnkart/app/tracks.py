@@ -5,6 +5,7 @@ its checkpoints, spawn and route field (:mod:`snnkart.envs.trackgen`,
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from snnkart.envs import make, resolve_env_name
 from snnkart.envs.trackgen import generated_toml
@@ -35,7 +36,7 @@ def show_track(track: str | Path, env: str, checkpoint: int, out: Path) -> str:
             f"{loaded.source}: no checkpoint {checkpoint}; it has {n} (0..{n - 1}, the last is "
             "the finish line)"
         )
-    kart = make(resolve_env_name(env), track=loaded).unwrapped
+    kart: Any = make(resolve_env_name(env), track=loaded).unwrapped
     try:
         png = track_png(loaded, kart.route_field, checkpoint % n, kart.env_name)
     finally:
