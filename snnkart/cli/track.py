@@ -24,7 +24,10 @@ def generate(
     ] = "loop",
     length_m: Annotated[
         float | None,
-        typer.Option("--length-m", help="centreline length, 6..30 m (default: from the seed)"),
+        typer.Option(
+            "--length-m",
+            help="centreline length: loop 14..20 m, course 12..18 m (default: from the seed)",
+        ),
     ] = None,
     width_m: Annotated[
         float | None,

@@ -12,7 +12,7 @@ line), facing along it. :func:`track_toml` writes the documented TOML format
 first draw that fits: legs at least :data:`MIN_LEG_M` long, turns of at most
 :data:`MAX_TURN_DEG` per corner (the steer car's 0.36 m turning circle and the 0.192 m gazebo
 robot fit round every corner of a corridor at least :data:`WIDTH_RANGE_M` ``[0]`` wide), no two
-non-adjacent legs closer than the corridor width plus :data:`GAP_M`, everything inside the
+non-adjacent corridors closer than :data:`GAP_M`, everything inside the
 renderer's 10 m x 10 m world with a margin, and the loader's validation passed.
 
     >>> from snnkart.envs.trackgen import generate_track
@@ -46,17 +46,20 @@ KINDS = ("loop", "course")
 """Generated track kinds: a closed circuit (one lap) or a point-to-point course."""
 WIDTH_RANGE_M = (1.0, 2.0)
 """Allowed corridor widths, metres (the steer car turns on a 0.36 m radius at full lock)."""
-LENGTH_RANGE_M = (6.0, 30.0)
-"""Allowed centreline lengths, metres (longer ones do not fit the 10 m world)."""
+LENGTH_RANGE_M = {"loop": (14.0, 20.0), "course": (12.0, 18.0)}
+"""Allowed centreline lengths per kind, metres (shorter tracks leave no room for a start
+straight and gentle corners, longer ones rarely fit the 10 m world)."""
 MIN_LEG_M = 1.4
 """Shortest leg between two corners, metres."""
-MAX_TURN_DEG = 80.0
+MAX_TURN_DEG = 90.0
 """Sharpest turn at one corner, degrees."""
 GAP_M = 0.4
 """Least wall-to-wall gap between non-adjacent legs, metres."""
 START_LEG_M = {"loop": 3.0, "course": 2.4}
 """Shortest first leg, metres: the spawn (1.0 m or 0.6 m in, jittered) stays behind the first
 checkpoint, which crosses the middle of the first leg."""
+START_SPAN = 1.5
+"""A loop's start straight spans this many times an average leg's share of the circle."""
 MAX_TRIES = 400
 
 
@@ -189,7 +192,7 @@ def generated_design(
     rng = np.random.default_rng([seed, KINDS.index(kind)])
     for _ in range(MAX_TRIES):
         width = width_m if width_m is not None else float(rng.uniform(1.2, 1.6))
-        length = length_m if length_m is not None else float(rng.uniform(10.0, 18.0))
+        length = length_m if length_m is not None else float(rng.uniform(*LENGTH_RANGE_M[kind]))
         centre = _loop(rng, length) if kind == "loop" else _course(rng, length)
         if centre is None or not _clear(centre, width, kind == "loop"):
             continue
@@ -225,9 +228,10 @@ def _check_request(seed: int, kind: str, length_m: float | None, width_m: float 
         raise TrackError(f"unknown track kind {kind!r}; choose one of {', '.join(KINDS)}")
     if seed < 0:
         raise TrackError(f"track seed {seed} is negative; use a seed >= 0")
-    if length_m is not None and not LENGTH_RANGE_M[0] <= length_m <= LENGTH_RANGE_M[1]:
+    low, high = LENGTH_RANGE_M[kind]
+    if length_m is not None and not low <= length_m <= high:
         raise TrackError(
-            f"track length {length_m} m is outside {LENGTH_RANGE_M[0]}..{LENGTH_RANGE_M[1]} m; "
+            f"track length {length_m} m is outside {low}..{high} m for a {kind}; "
             "choose a length in that range"
         )
     if width_m is not None and not WIDTH_RANGE_M[0] <= width_m <= WIDTH_RANGE_M[1]:
@@ -239,12 +243,15 @@ def _check_request(seed: int, kind: str, length_m: float | None, width_m: float 
 
 def _loop(rng: np.random.Generator, length: float) -> np.ndarray | None:
     """A closed centreline: corners spread round a circle of circumference ``length`` (radii
-    and angles jittered), starting on its longest leg (the start straight)."""
-    n = int(rng.integers(4, 8))
-    angles = 2 * np.pi * (np.arange(n) + rng.uniform(-0.3, 0.3, n)) / n
+    and angles jittered), starting on its longest leg (the start straight, :data:`START_SPAN`)."""
+    n = int(rng.integers(5, 9))
+    span = np.concatenate([[START_SPAN], rng.uniform(0.8, 1.2, n - 1)])  # per leg
+    angles = 2 * np.pi * np.concatenate([[0.0], np.cumsum(span)[:-1]]) / span.sum()
     radius = length / (2 * np.pi) * rng.uniform(0.8, 1.2, n)
     pts = np.stack([radius * np.cos(angles), radius * np.sin(angles)], axis=1)
     legs = np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=1)
+    pts *= length / legs.sum()  # the polygon's perimeter is the length asked for
+    legs *= length / legs.sum()
     pts = np.roll(pts, -int(legs.argmax()), axis=0)
     ok = legs.max() >= START_LEG_M["loop"] and _shape_ok(pts, closed=True)
     return pts if ok else None
@@ -254,8 +261,8 @@ def _course(rng: np.random.Generator, length: float) -> np.ndarray | None:
     """An open centreline: a walk of legs with turns of at most :data:`MAX_TURN_DEG`."""
     n = int(rng.integers(4, 8))
     legs = rng.uniform(0.6, 1.4, n)
-    legs *= length / legs.sum()
-    legs[0] = max(legs[0], START_LEG_M["course"])
+    legs[0] = max(legs[0] * length / legs.sum(), START_LEG_M["course"])
+    legs[1:] *= (length - legs[0]) / legs[1:].sum()  # the legs add up to the length asked for
     turns = np.radians(rng.uniform(-MAX_TURN_DEG, MAX_TURN_DEG, n - 1))
     heading = np.concatenate([[0.0], np.cumsum(turns)])
     steps = np.stack([legs * np.cos(heading), legs * np.sin(heading)], axis=1)
@@ -276,7 +283,9 @@ def _shape_ok(pts: np.ndarray, closed: bool) -> bool:
 
 
 def _clear(pts: np.ndarray, width: float, closed: bool) -> bool:
-    """No two non-adjacent legs closer than the corridor width plus :data:`GAP_M`."""
+    """No two non-adjacent legs closer than 1.5 corridor widths plus :data:`GAP_M` (centreline
+    to centreline: half a width for each corridor, and half more for a mitred corner or a
+    course's square end that sticks out towards another leg)."""
     seq = np.vstack([pts, pts[:1]]) if closed else pts
     n = len(seq) - 1
     t = np.linspace(0.0, 1.0, 25)[:, None]
@@ -286,7 +295,7 @@ def _clear(pts: np.ndarray, width: float, closed: bool) -> bool:
             if closed and i == 0 and j == n - 1:
                 continue  # the first and last legs meet at the start corner
             gap = np.linalg.norm(samples[i][:, None] - samples[j][None], axis=2).min()
-            if gap < width + GAP_M:
+            if gap < 1.5 * width + GAP_M:
                 return False
     return True
 
