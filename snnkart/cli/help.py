@@ -58,11 +58,11 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "track": ("snnkart track generate --seed 7 -o track.toml",),
     "track generate": (
         "snnkart track generate --seed 7 -o track.toml",
-        "snnkart track generate --seed 3 --kind course --length-m 14 --width-m 1.2 -o c3.toml",
+        "snnkart track generate --seed 3 --kind course --length-m 14 -o c3.toml",
     ),
     "track show": (
         "snnkart track show track.toml -o track.png",
-        "snnkart track show small_S --env gazebo --checkpoint -1 -o small_S.png",
+        "snnkart track show small_S --env gazebo --checkpoint -1 -o s.png",
     ),
     "ros sim": ("snnkart ros sim --policy runs/gazebo-snn",),
     "ros drive": ("snnkart ros drive runs/gazebo-snn/policy.nir --backend lava-sim",),
