@@ -15,6 +15,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from snnkart.envs import make
+from snnkart.envs.constants import KART_RADIUS_PX
 from snnkart.envs.geometry import point_segment_distance
 from snnkart.envs.spec import env_spec
 from snnkart.envs.trackgen import (
@@ -211,3 +212,15 @@ def test_cli_generate_and_show(tmp_path):
         app, ["track", "show", str(out), "--checkpoint", "40", "-o", str(png)]
     )
     assert result.exit_code == 2 and "no checkpoint 40" in result.output
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_steer_car_has_a_route_round_every_corner(seed):
+    """With the steer car's clearance (its 0.36 m turning radius), a drivable route joins the
+    spawn to checkpoint 0 and every checkpoint line to the next: the corners are not too tight."""
+    env = make("steer", track=generate_track(seed, KINDS[seed % 2])).unwrapped
+    assert env.route_clearance() > KART_RADIUS_PX  # the turning radius, not the body
+    track, field = env.track, env.route_field
+    starts = [track.spawn_position, *(cp.midpoint for cp in track.checkpoints[:-1])]
+    for k, (x, y) in enumerate(starts):
+        assert np.isfinite(field.distance(k, x, y)), f"{track.name}: no route to checkpoint {k}"

@@ -210,8 +210,8 @@ def generated_design(
             continue
         return design
     raise TrackError(
-        f"no {kind} of {length_m} m with {width_m} m corridors fits the 10 m world after "
-        f"{MAX_TRIES} tries (seed {seed}); ask for a shorter track or narrower corridors"
+        f"no {kind} (seed {seed}, length {length_m or 'drawn'} m, width {width_m or 'drawn'} m) "
+        f"fits the 10 m world in {MAX_TRIES} tries; ask for a shorter track or narrower corridors"
     )
 
 
