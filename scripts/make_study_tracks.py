@@ -5,6 +5,9 @@ Each track is a corridor of constant width around a centreline, built by
 to measure whether training
 defaults generalise: nobody tunes on them (issue 17).
 
+It also writes the generalisation study's reporting tracks, generated from the committed seed
+list ``snnkart.envs.trackgen.REPORTING_SEEDS``, to ``benchmarks/tracks/generated/``.
+
     python scripts/make_study_tracks.py            # rewrites benchmarks/tracks/*.toml
 """
 
@@ -12,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from snnkart.envs.trackgen import Design, track_toml
+from snnkart.envs.trackgen import KINDS, REPORTING_SEEDS, Design, generated_toml, track_toml
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "tracks"
@@ -54,6 +57,12 @@ def main() -> None:
     for design in DESIGNS:
         path = OUT / f"{design.name}.toml"
         path.write_text(track_toml(design))
+        print(f"wrote {path.relative_to(ROOT)}")
+    (OUT / "generated").mkdir(exist_ok=True)
+    for seed in REPORTING_SEEDS:
+        kind = KINDS[seed % 2]
+        path = OUT / "generated" / f"{kind}-{seed}.toml"
+        path.write_text(generated_toml(seed, kind))
         print(f"wrote {path.relative_to(ROOT)}")
 
 

@@ -75,7 +75,7 @@ def _corridor_ok(track: Track) -> None:
     narrowest allowed corridor (no pinch, no leg laid over another)."""
     xmin, ymin, xmax, ymax = track.bounds
     assert 0 <= xmin and 0 <= ymin and xmax <= WORLD_PX and ymax <= WORLD_PX, track.name
-    left, right = (np.asarray(w, dtype=float) for w in track.walls)
+    left, right = (np.asarray(w, dtype=float) for w in track.walls[:2])  # a course: + its cap
     narrowest = WIDTH_RANGE_M[0] * 100 - 2.0  # px, less the coordinates' rounding
     for pts, other in ((left, right), (right, left)):
         segs = np.hstack([other[:-1], other[1:]])
@@ -224,3 +224,29 @@ def test_steer_car_has_a_route_round_every_corner(seed):
     starts = [track.spawn_position, *(cp.midpoint for cp in track.checkpoints[:-1])]
     for k, (x, y) in enumerate(starts):
         assert np.isfinite(field.distance(k, x, y)), f"{track.name}: no route to checkpoint {k}"
+
+
+def test_reporting_tracks_are_committed_and_never_drawn():
+    """The generalisation study's 20 reporting tracks: committed files equal to their seeds'
+    generation, outside the seeds track="random" draws, and reporting data for the protocol."""
+    from snnkart.app.protocol import data_problem
+    from snnkart.envs.trackgen import RANDOM_SEEDS, REPORTING_SEEDS
+
+    assert len(set(REPORTING_SEEDS)) == 20 and min(REPORTING_SEEDS) >= RANDOM_SEEDS
+    folder = ROOT / "benchmarks/tracks/generated"
+    assert len(list(folder.glob("*.toml"))) == 20
+    for seed in REPORTING_SEEDS:
+        kind = KINDS[seed % 2]
+        path = folder / f"{kind}-{seed}.toml"
+        assert path.read_text() == generated_toml(seed, kind), path.name
+    paths = [str(p) for p in sorted(folder.glob("*.toml"))]
+    assert data_problem("reporting", [101], paths) is None
+    assert "not tuning data" in data_problem("tuning", [1], paths[:1])
+
+
+def test_a_course_is_closed_behind_its_start():
+    """A generated course has a wall across the corridor behind the spawn (a kart cannot
+    leave backwards); the study's own open tracks keep their two walls."""
+    course = generate_track(3, "course")
+    assert len(course.walls) == 3
+    assert len(load_track(ROOT / "benchmarks/tracks/zigzag.toml").walls) == 2

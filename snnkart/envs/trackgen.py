@@ -73,6 +73,7 @@ class Design:
     width: float
     closed: bool = False
     header: str = "Written by scripts/make_study_tracks.py for the study's held-out tracks; do not tune on it."
+    cap_start: bool = False  # a course: a wall across the corridor behind the start
 
 
 def _left_normal(d: np.ndarray) -> np.ndarray:
@@ -139,6 +140,8 @@ def track_toml(design: Design) -> str:
         finish = _across(pts[-1], pts[-1] - pts[-2], half)
         back = _across(pts[0], start_dir, half)
         walls = [np.vstack([back[0], left]), np.vstack([back[1], right])]
+        if design.cap_start:  # else a kart can leave backwards (the study's tracks do)
+            walls.append(np.vstack([back[0], back[1]]))
     length = sum(float(np.linalg.norm(b - a)) for a, b in legs)
     all_pts = np.vstack([*walls, *(np.array(c) for c in checkpoints)])
     shift = -all_pts.min(axis=0) + MARGIN_M
@@ -202,6 +205,7 @@ def generated_design(
             [(round(float(x), 3), round(float(y), 3)) for x, y in centre],
             round(width, 3),
             closed=kind == "loop",
+            cap_start=kind == "course",
             header=f"Written by snnkart track generate --seed {seed} --kind {kind}.",
         )
         try:
@@ -333,3 +337,15 @@ def random_route(seed: int, clearance: float) -> GeodesicField:
     """The geodesic route field of :func:`random_track` ``(seed)`` (cached: an env that meets a
     track again, as evaluation over a seed range does, reuses it)."""
     return geodesic_field(random_track(seed), clearance=clearance)
+
+
+REPORTING_SEEDS: tuple[int, ...] = tuple(RANDOM_SEEDS + k for k in range(20))
+"""The generator seeds of the generalisation study's reporting tracks (10 loops, 10 courses:
+``KINDS[seed % 2]``), committed before any result: at and above :data:`RANDOM_SEEDS`, outside
+the range ``track="random"`` draws from, so no policy ever trains on them. Written to
+``benchmarks/tracks/generated/`` by ``scripts/make_study_tracks.py``."""
+
+
+def reporting_track_names() -> tuple[str, ...]:
+    """The names (file stems) of the reporting tracks of :data:`REPORTING_SEEDS`."""
+    return tuple(f"{KINDS[s % 2]}-{s}" for s in REPORTING_SEEDS)
