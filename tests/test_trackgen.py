@@ -250,3 +250,29 @@ def test_a_course_is_closed_behind_its_start():
     course = generate_track(3, "course")
     assert len(course.walls) == 3
     assert len(load_track(ROOT / "benchmarks/tracks/zigzag.toml").walls) == 2
+
+
+def test_a_policy_trained_on_random_tracks_evaluates_on_both(tmp_path):
+    """A tiny run on track="random" carries the stand-in; `eval` runs it on random tracks by
+    default (each episode's reset seed its own track) and on a named track with --track."""
+    import json
+
+    from tiny_runs import train_tiny
+    from typer.testing import CliRunner
+
+    from snnkart.cli.main import app
+    from snnkart.rl.trained import load_run
+
+    run = train_tiny(tmp_path / "run", "grid", "ann", total_steps=256, track="random")
+    meta = json.loads((run / "checkpoint.json").read_text())
+    assert meta["track"]["name"] == "random" and meta["track"]["given"] == "random"
+    loaded = load_run(run)
+    env = loaded.config.make_env(track=loaded.track).unwrapped  # as eval, replay, report do
+    env.reset(seed=5)
+    assert env.random_tracks and env.track.name != "random"
+    result = CliRunner().invoke(app, ["eval", str(run), "--episodes", "2", "--seed", "1000"])
+    assert result.exit_code == 0, result.output
+    assert "grid/random" in result.output and "not the track" not in result.output
+    result = CliRunner().invoke(app, ["eval", str(run), "--episodes", "1", "--track", "small_S"])
+    assert result.exit_code == 0, result.output
+    assert "not the track the policy was trained on (random)" in result.output
