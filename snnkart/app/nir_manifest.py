@@ -82,7 +82,7 @@ def _env_facts(
         space: Any = kart.observation_space
         low, high = space.low, space.high
         n_actions = int(getattr(kart.action_space, "n", 2))
-        track_record = embed_track(unwrapped.track, track)
+        track_record = embed_track(unwrapped.track_given, track)
     finally:
         kart.close()
     return spec, low, high, n_actions, track_record

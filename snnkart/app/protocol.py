@@ -12,6 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
+from snnkart.envs.trackgen import reporting_track_names
+
 DataKind = Literal["tuning", "reporting"]
 """What a study's runs are for: choosing defaults, or the published numbers."""
 
@@ -21,9 +23,10 @@ FIRST_REPORTING_SEED = 101
 """Training seeds 101 and up: reporting only."""
 TUNING_TRACKS: tuple[str, ...] = ("small_S", "big_S", "ring", "hairpins")
 """The tracks defaults were (or may be) chosen on."""
-REPORTING_TRACKS: tuple[str, ...] = ("zigzag", "bends")
-"""The tracks no choice has touched. Generated tracks join this list with the committed seed
-list they are generated from, never one chosen after seeing a result."""
+REPORTING_TRACKS: tuple[str, ...] = ("zigzag", "bends", *reporting_track_names())
+"""The tracks no choice has touched: zigzag, bends, and the generated tracks of the committed
+seed list ``snnkart.envs.trackgen.REPORTING_SEEDS`` (``benchmarks/tracks/generated/``), which
+``track="random"`` never draws."""
 
 
 def track_name(track: str) -> str:

@@ -62,9 +62,17 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "nir run": ("snnkart nir run policy.nir --input currents.npy --check",),
     "nir manifest": ("snnkart nir manifest model.nir --env steer --dt 1e-4",),
     "ros": ("snnkart ros drive runs/gazebo-snn",),
+    "track": ("snnkart track generate --seed 7 -o track.toml", "snnkart track edit my_track.toml"),
+    "track generate": (
+        "snnkart track generate --seed 7 -o track.toml",
+        "snnkart track generate --seed 3 --kind course --length-m 14 -o c3.toml",
+    ),
+    "track show": (
+        "snnkart track show track.toml -o track.png",
+        "snnkart track show small_S --env gazebo --checkpoint -1 -o s.png",
+    ),
     "ros sim": ("snnkart ros sim --policy runs/gazebo-snn",),
     "ros drive": ("snnkart ros drive runs/gazebo-snn/policy.nir --backend lava-sim",),
-    "track": ("snnkart track edit my_track.toml",),
     "track edit": (
         "snnkart track edit my_track.toml",
         "snnkart track edit snnkart/tracks/small_S.toml",

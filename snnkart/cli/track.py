@@ -1,4 +1,5 @@
-"""``snnkart track ...``: commands on track files (``track edit``: the track editor)."""
+"""``snnkart track ...``: commands on track files: ``generate``, ``show`` and ``edit`` (the
+track editor)."""
 
 from __future__ import annotations
 
@@ -7,9 +8,61 @@ from typing import Annotated
 
 import typer
 
-from snnkart.cli.guard import fail
+from snnkart.cli.guard import fail, guard
 
-track_app = typer.Typer(help="Draw and edit track files.", no_args_is_help=True)
+track_app = typer.Typer(help="Generate, edit and draw tracks.", no_args_is_help=True)
+
+
+@track_app.command("generate")
+def generate(
+    seed: Annotated[
+        int, typer.Option("--seed", help="generator seed (the same seed, the same file)")
+    ],
+    out: Annotated[Path, typer.Option("--out", "-o", help="the track file to write (.toml)")],
+    kind: Annotated[
+        str, typer.Option("--kind", help="loop (a closed circuit, one lap) or course (A to B)")
+    ] = "loop",
+    length_m: Annotated[
+        float | None,
+        typer.Option(
+            "--length-m",
+            help="centreline length: loop 14..20 m, course 12..18 m (default: from the seed)",
+        ),
+    ] = None,
+    width_m: Annotated[
+        float | None,
+        typer.Option("--width-m", help="corridor width, 1..2 m (default: from the seed)"),
+    ] = None,
+) -> None:
+    """Write a generated track (walls, checkpoints, spawn) in the track TOML format: corners
+    the steer car and the gazebo robot can take, inside the renderer's 10 m world."""
+    from snnkart.app.tracks import generate_track_file
+
+    name = guard(lambda: generate_track_file(seed, kind, length_m, width_m, out))
+    typer.echo(f"wrote {out} ({name}); try it: snnkart track show {out} -o track.png")
+
+
+@track_app.command("show")
+def show(
+    track: Annotated[str, typer.Argument(help="built-in track (big_S, small_S) or a track file")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="the picture to write (.png)")],
+    env: Annotated[
+        str,
+        typer.Option(
+            "--env", "-e", help="whose geometry the route keeps to: grid, gazebo or steer"
+        ),
+    ] = "steer",
+    checkpoint: Annotated[
+        int,
+        typer.Option("--checkpoint", help="the route field to this checkpoint line (-1: finish)"),
+    ] = 0,
+) -> None:
+    """Draw a track: walls, checkpoints (finish in red), spawn with heading and jitter box,
+    and the geodesic route field (distance and direction along the drivable route)."""
+    from snnkart.app.tracks import show_track
+
+    name = guard(lambda: show_track(track, env, checkpoint, out))
+    typer.echo(f"wrote {out} ({name}, {env} geometry)")
 
 
 @track_app.command("edit")

@@ -19,14 +19,16 @@ from gymnasium import spaces
 from snnkart.envs.components import select_components
 from snnkart.envs.config import EnvConfig
 from snnkart.envs.constants import DT, KART_RADIUS_PX, PIXELS_PER_METRE, RENDER_FPS
-from snnkart.envs.geodesic import geodesic_field
+from snnkart.envs.geodesic import GeodesicField, geodesic_field
 from snnkart.envs.geometry import nearest_point
-from snnkart.envs.lidar import cast_rays, ray_ends, ray_offsets
+from snnkart.envs.kart_state import KartState
+from snnkart.envs.lidar import cast_rays, ray_offsets
 from snnkart.envs.observation import ObsField, observation_layout, observation_space
 from snnkart.envs.reward import Stall, StandStill, step_terms
 from snnkart.envs.sim2real import Sim2Real
 from snnkart.envs.starts import pick_start
-from snnkart.envs.tracks import Track, load_track
+from snnkart.envs.trackgen import RANDOM_SEEDS, random_route, random_track
+from snnkart.envs.tracks import Track, is_random, load_track
 from snnkart.envs.world import build_world
 from snnkart.errors import EnvError
 from snnkart.faults import fault_point
@@ -36,7 +38,7 @@ ACTION_MODES = ("discrete", "continuous")
 ConfigT = TypeVar("ConfigT", bound=EnvConfig)
 
 
-class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
+class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
     """Base class; see :class:`GridEnv`, :class:`GazeboEnv` and :class:`SteerEnv`."""
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": RENDER_FPS}  # noqa: RUF012
@@ -74,7 +76,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._check_modes(action_mode, render_mode)
         resolved = self._resolve_config(config)
         self.config: ConfigT = resolved  # type: ignore[assignment]
-        self.track = load_track(track)
+        self.track_given = load_track(track)  # for random tracks their stand-in (tracks.py)
+        self.random_tracks = is_random(self.track_given)  # a new generated track per reset
         self.action_mode = action_mode
         self.render_mode = render_mode
 
@@ -83,14 +86,7 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self._ray_range = lidar.range_m * PIXELS_PER_METRE
         self._ray_angles = np.empty_like(self._ray_offsets)
         self._lidar = np.zeros(lidar.n_rays, dtype=np.float64)
-        self._segments = np.ascontiguousarray(self.track.segments)
-        self._goals = [(*cp.a, *cp.b) for cp in self.track.checkpoints]
-        self._n_checkpoints = len(self._goals)
         self._dist_scale = self.config.checkpoint_distance_scale_m * PIXELS_PER_METRE
-        self._geodesic = geodesic_field(self.track, clearance=self.route_clearance())
-        self.max_episode_steps = self.config.max_episode_steps or math.ceil(
-            self.track.time_limit_s * self._time_limit_factor() / DT
-        )
 
         own = observation_layout(lidar.n_rays, self._kinematic_fields())
         self._obs_dim = sum(f.size for f in own)  # the env's own layout's (the default)
@@ -99,18 +95,36 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self.observation_layout = self._select.layout if self._select else own
         self.observation_space: spaces.Box = observation_space(self.observation_layout)
 
-        world = build_world(
-            self._segments, self.track.checkpoints, self._on_wall, self._on_checkpoint
-        )
-        self._space, self._body = world.space, world.body
+        self._renderer: Any = None
+        self._use_track(self.track_given)
         self._stand_still = StandStill(self.config.reward.stand_still_radius_m * PIXELS_PER_METRE)
         self._sim2real = Sim2Real(self.config.sim2real, self.action_space, self.IDLE_ACTION)
         self._reset_state()
         self._reset_vehicle()
         np.add(self._ray_offsets, self._heading, out=self._ray_angles)
-        self._renderer: Any = None
         self.activity: list[tuple[str, float]] = []  # (layer, firing rate) for the side panel
         self.overlays: list[Any] = []  # drawn last on each frame, f(surface) (play's key help)
+
+    def _use_track(self, track: Track, route: GeodesicField | None = None) -> None:
+        """Build the world, the route field and the time limit of ``track``."""
+        self.track = track
+        self._segments = np.ascontiguousarray(track.segments)
+        self._goals = [(*cp.a, *cp.b) for cp in track.checkpoints]
+        self._n_checkpoints = len(self._goals)
+        if route is None:
+            route = geodesic_field(track, clearance=self.route_clearance())
+        self._geodesic = route
+        self.max_episode_steps = self.config.max_episode_steps or math.ceil(
+            track.time_limit_s * self._time_limit_factor() / DT
+        )
+        world = build_world(self._segments, track.checkpoints, self._on_wall, self._on_checkpoint)
+        self._space, self._body = world.space, world.body
+        self.close()  # a renderer draws the track it was made for
+
+    def _draw_random_track(self) -> None:
+        """Switch to the generated track of a seed drawn from ``np_random`` (``track="random"``)."""
+        seed = int(self.np_random.integers(RANDOM_SEEDS))
+        self._use_track(random_track(seed), random_route(seed, self.route_clearance()))
 
     def _check_modes(self, action_mode: str, render_mode: str | None) -> None:
         if action_mode not in ACTION_MODES:
@@ -175,6 +189,11 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         if self.config.route_clearance_m is not None:
             return self.config.route_clearance_m * PIXELS_PER_METRE  # >= the radius
         return self._default_route_clearance()
+
+    @property
+    def route_field(self) -> GeodesicField:
+        """The current track's geodesic route field (the progress reward's potential)."""
+        return self._geodesic
 
     def _default_route_clearance(self) -> float:
         """The kart radius, for vehicles that can turn on the spot."""
@@ -245,6 +264,8 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
+        if self.random_tracks:
+            self._draw_random_track()
         self._reset_state()
         start = pick_start(self.np_random, self.track, self._geodesic, self.start_spread)
         self._x, self._y, self._next_cp = start.x, start.y, start.next_cp
@@ -355,58 +376,6 @@ class KartEnv(gym.Env[np.ndarray, Any], Generic[ConfigT]):
             "position": (self._x, self._y),
             "reward_terms": dict(self._last_terms),
         }
-
-    # -- state for renderers and drivers --------------------------------------------------------
-
-    @property
-    def position(self) -> tuple[float, float]:
-        """Kart centre, px."""
-        return (self._x, self._y)
-
-    @property
-    def heading(self) -> float:
-        """Heading (rad, clockwise on screen from +x); 0 in the grid env."""
-        return self._heading
-
-    @property
-    def next_checkpoint(self) -> int:
-        """Index of the checkpoint to pass next (0-based)."""
-        return self._next_cp
-
-    @property
-    def lap_finished(self) -> bool:
-        return self._finished and self._from_spawn
-
-    @property
-    def elapsed_time(self) -> float:
-        """Simulated seconds since the episode began."""
-        return self._steps * DT
-
-    @property
-    def episode_steps(self) -> int:
-        return self._steps
-
-    @property
-    def lidar_distances(self) -> np.ndarray:
-        """Normalised ray distances of the last observation, in [0, 1] (1 = no hit)."""
-        return self._lidar
-
-    @property
-    def last_action(self) -> Any:
-        return self._last_action
-
-    @property
-    def last_reward_terms(self) -> dict[str, float]:
-        return self._last_terms
-
-    @property
-    def episode_return(self) -> float:
-        return self._episode_return
-
-    @property
-    def lidar_hits(self) -> np.ndarray:
-        """Ray end points of the last observation, px, shape ``[n_rays, 2]``."""
-        return ray_ends(self._x, self._y, self._ray_angles, self._lidar * self._ray_range)
 
     def describe_action(self, action: Any) -> str:
         """Human-readable name of an action (for the side panel)."""

@@ -76,11 +76,12 @@ def make_env(
 
 def env_spec(env: KartEnv) -> dict[str, Any]:
     """Everything about an env that a trained policy depends on."""
-    track_text = env.track.to_toml()
+    track = env.track_given  # random tracks: their stand-in, not the current one
+    track_text = track.to_toml()
     return {
         "revision": ENV_REVISION,
         "env": env.env_name,
-        "track": env.track.name,
+        "track": track.name,
         "track_sha256": hashlib.sha256(track_text.encode()).hexdigest(),
         "action_mode": env.action_mode,
         "action_space": str(env.action_space),

@@ -50,6 +50,10 @@ else:  # pragma: no cover - exercised on 3.10
 
 TRACK_SCHEMA = "snnkart/track/v1"
 BUILTIN_TRACKS = ("big_S", "small_S")
+RANDOM_TRACK = "random"
+"""The track name that asks an env for a new generated track at every reset
+(:mod:`snnkart.envs.trackgen`); ``load_track`` gives its stand-in, ``tracks/random.toml``."""
+RANDOM_DESCRIPTION = "a new generated track at every reset, drawn from the reset's seed"
 
 
 @dataclass(frozen=True)
@@ -136,11 +140,12 @@ def _num(x: float) -> str:
 
 
 def load_track(track: str | Path | Track) -> Track:
-    """Load a built-in track by name (``big_S``, ``small_S``) or a track file by path."""
+    """Load a built-in track by name (``big_S``, ``small_S``), a track file by path, or for
+    ``random`` the stand-in of random tracks (see :func:`is_random`)."""
     if isinstance(track, Track):
         return track
     name = str(track)
-    if name in BUILTIN_TRACKS:
+    if name in (*BUILTIN_TRACKS, RANDOM_TRACK):
         text = resources.files("snnkart.tracks").joinpath(f"{name}.toml").read_text("utf-8")
         return parse_track(text, source=f"built-in track {name!r}")
     path = Path(name).expanduser()
@@ -159,6 +164,14 @@ def load_track(track: str | Path | Track) -> Track:
 def track_sha256(track: Track) -> str:
     """The content hash of a track's geometry (of its canonical TOML text)."""
     return hashlib.sha256(track.to_toml().encode()).hexdigest()
+
+
+def is_random(track: str | Path | Track) -> bool:
+    """Whether ``track`` asks for random tracks: the name ``random`` or its stand-in track (as
+    a checkpoint or manifest embeds it)."""
+    if isinstance(track, Track):
+        return track.name == RANDOM_TRACK and track.description == RANDOM_DESCRIPTION
+    return str(track) == RANDOM_TRACK
 
 
 def is_builtin(given: str | Path) -> bool:

@@ -23,6 +23,7 @@ class PathFollower:
     """Tracks progress along the polyline spawn -> checkpoint midpoints and gives a look-ahead point."""
 
     def __init__(self, env: KartEnv, lookahead_px: float) -> None:
+        self.track = env.track
         pts = [env.track.spawn_position, *(cp.midpoint for cp in env.track.checkpoints)]
         self.points = np.asarray(pts, dtype=np.float64)
         self.lookahead = lookahead_px
@@ -91,6 +92,8 @@ class ScriptedDriver:
 
     def act(self, env: KartEnv | None = None) -> Any:
         env = env or self.env
+        if self.follower.track is not env.track:  # track="random": a new track this episode
+            self.follower = PathFollower(env, lookahead_px=self.follower.lookahead)
         pos = env.position
         tx, ty = self.follower.target(pos)
         speed_goal = self.corner if self.follower.corner_ahead(pos, 90.0) > 0.6 else self.cruise
