@@ -18,7 +18,7 @@ opens it (see :class:`snnkart.backends.reference.NIRReference`), named in
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, ClassVar, Protocol
+from typing import Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
@@ -48,7 +48,33 @@ class Engine(Protocol):
     def close(self) -> None: ...
 
 
-class Backend:
+class EngineOwner:
+    """Closing a running policy's engine, also as a context manager: a close that fails
+    while another error is on its way out gives way to that error. Shared by :class:`Backend`
+    and the sigma-delta backends."""
+
+    engine: Any
+
+    def close(self) -> None:
+        self.engine.close()
+
+    def __enter__(self: _Owner) -> _Owner:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if exc[0] is None:
+            self.close()
+        else:
+            try:
+                self.close()
+            except BackendError:
+                pass  # the engine was stopped; the original error matters more
+
+
+_Owner = TypeVar("_Owner", bound=EngineOwner)
+
+
+class Backend(EngineOwner):
     """A running policy: ``step(obs)`` encodes the observation on the host, runs one window on
     the engine and returns the window and the readout; ``predict`` the decoded action.
 
@@ -114,18 +140,3 @@ class Backend:
         exact = None if own else self.arithmetic
         float32: Arithmetic | None = None if own and self.arithmetic == "float32" else "float32"
         return exact, float32
-
-    def close(self) -> None:
-        self.engine.close()
-
-    def __enter__(self) -> Backend:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if exc[0] is None:
-            self.close()
-        else:
-            try:
-                self.close()
-            except BackendError:
-                pass  # the engine was stopped; the original error matters more

@@ -28,6 +28,7 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from snnkart.backends.backend import EngineOwner
 from snnkart.backends.base import Arithmetic
 from snnkart.backends.loading import open_policy
 from snnkart.backends.sdnn_counts import SigmaDeltaCounter, SigmaDeltaStep, SigmaDeltaTotals
@@ -105,7 +106,7 @@ class SigmaDeltaCodec:
         return encoding.decode(out, self.manifest.action_mode)
 
 
-class SigmaDeltaBackend:
+class SigmaDeltaBackend(EngineOwner):
     """A running sigma-delta policy: ``step(obs)`` encodes on the host, runs one env step on
     the engine, counts it and returns the window and the readout; ``predict`` the action.
     Subclasses open their engine in :meth:`open_engine`."""
@@ -164,21 +165,6 @@ class SigmaDeltaBackend:
         """The same-arithmetic numpy reference (None for the reference itself); no float32
         reference: a sigma-delta chain has no float32 form."""
         return (None if self.engine.is_reference else self.arithmetic), None
-
-    def close(self) -> None:
-        self.engine.close()
-
-    def __enter__(self) -> SigmaDeltaBackend:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if exc[0] is None:
-            self.close()
-        else:
-            try:
-                self.close()
-            except BackendError:
-                pass  # the engine was stopped; the original error matters more
 
 
 class SigmaDeltaReference(SigmaDeltaBackend):
