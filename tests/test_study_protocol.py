@@ -38,8 +38,8 @@ def test_a_study_without_a_data_key_is_told_to_add_one(tmp_path: Path) -> None:
         ('data = "tuning"\ntracks = ["benchmarks/tracks/bends.toml"]\n', "'benchmarks/tracks/bends"),
         ('data = "reporting"\ntracks = ["benchmarks/tracks/zigzag.toml"]\nseeds = [101, 100]\n',
          'data = "reporting", but seed 100 is not reporting data'),
-        ('data = "reporting"\nseeds = [101]\ntracks = ["benchmarks/tracks/bends.toml", "big_S"]\n',
-         "track 'big_S' is not reporting data"),
+        ('data = "reporting"\nseeds = [101]\ntracks = ["benchmarks/tracks/bends.toml", "benchmarks/tracks/hairpins.toml"]\n',
+         "track 'benchmarks/tracks/hairpins.toml' is not reporting data"),
         ('data = "reporting"\nseeds = [101]\ntracks = ["benchmarks/tracks/ring.toml"]\n',
          "track 'benchmarks/tracks/ring.toml' is not reporting data"),
         ('data = "both"\n', "study.toml: data: Input should be 'tuning' or 'reporting'"),
@@ -73,9 +73,22 @@ def test_each_kind_loads_its_own_data(tmp_path: Path) -> None:
     assert reporting.data == "reporting" and len(plan(reporting)) == 2 * 3 * 2 * 2
 
 
+def test_a_reporting_study_may_train_on_the_originals_tracks_with_reporting_seeds(
+    tmp_path: Path,
+) -> None:
+    """The comparison with kart-simulator is about its two tracks: a reporting study trains on
+    them (and on random tracks) with reporting seeds; the ring stays tuning data."""
+    study = load_study(_config(tmp_path, 'data = "reporting"\nseeds = [101]\n'
+                                         'tracks = ["small_S", "big_S", "random"]\n'))  # fmt: skip
+    assert {r.spec.config.track for r in plan(study)} == {"small_S", "big_S", "random"}
+    with pytest.raises(UsageError, match="seed 5 is not reporting data"):
+        load_study(_config(tmp_path, 'data = "reporting"\nseeds = [5]\n'))
+
+
 def test_the_committed_studies_declare_their_data() -> None:
     kinds = {p.stem: load_study(p).data for p in sorted((ROOT / "studies").glob("*.toml"))}
-    assert kinds.pop("held-out-reporting") == "reporting"
+    for name in ("held-out-reporting", "bc-steer", "bc-gazebo"):
+        assert kinds.pop(name) == "reporting", name
     assert set(kinds.values()) == {"tuning"} and {"learning", "sparsity"} <= set(kinds)
 
 
