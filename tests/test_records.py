@@ -332,7 +332,7 @@ def test_a_v1_study_loads_without_the_v2_keys() -> None:
                for r in record.runs)  # fmt: skip
     assert all(c.eval_synops_per_step is None for c in record.cells)
     current = json.loads((DATA / "study.json").read_text())
-    assert current["schema"] == "snnkart/study/v3"  # what today's snnkart writes
+    assert current["schema"] == "snnkart/study/v4"  # what today's snnkart writes
     assert set(current["runs"][0]) - set(json.loads(old.read_text())["runs"][0]) == {
         "eval_mean_lap_time", "eval_counts_per_step"}  # fmt: skip
 
@@ -345,3 +345,17 @@ def test_a_v2_study_loads_without_sigma_delta_counts() -> None:
     record = StudyRecord.read(old)
     assert record.runs and all(r.sigma_delta_counts is None for r in record.runs)
     assert "sigma_delta_counts" not in to_data(record)["runs"][0]
+
+
+def test_a_v3_study_loads_without_held_out_tracks() -> None:
+    """``study.json`` v3 (before held-out tracks) still loads: no ``eval_tracks``, no run
+    ``held_out``; v4 added exactly the two study keys (a run's ``held_out`` is written only
+    when the study has held-out tracks)."""
+    old = DATA / "study-v3.json"
+    assert json.loads(old.read_text())["schema"] == "snnkart/study/v3"
+    record = StudyRecord.read(old)
+    assert record.study.eval_tracks == [] and all(r.held_out is None for r in record.runs)
+    current = json.loads((DATA / "study.json").read_text())
+    assert set(current["study"]) - set(json.loads(old.read_text())["study"]) == {
+        "eval_tracks", "eval_track_episodes"}  # fmt: skip
+    assert "held_out" not in to_data(record)["runs"][0]

@@ -9,13 +9,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from snnkart.app.pool import Exit, Job, Pool
+from snnkart.app.protocol import is_tuning_track
 from snnkart.app.reporter import Reporter
+from snnkart.app.study_types import held_out_tracks, track_stem
 from snnkart.app.worker import EvalJob, WorkerRequest
 from snnkart.contract.deploy_record import DeployRecord, StepCounts
 from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.energy.sd_counts import SigmaDeltaCounts
 from snnkart.errors import UsageError
-from snnkart.report.study_record import DeployedRun, RunRecord
+from snnkart.report.study_record import DeployedRun, HeldOut, RunRecord
 
 if TYPE_CHECKING:
     from snnkart.app.study_types import Run, StudyConfig
@@ -92,6 +94,54 @@ def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
             todo.append((run.spec.name, job))
     _run_all(todo, jobs, reporter, "evaluations")
     return {run.spec.name: _summary(_eval_job(run, runs_dir, study)[1]) for run in runs}
+
+
+HELD_OUT_DIR = "study-held-out"
+
+
+def _held_out_job(run: Run, runs_dir: Path, study: StudyConfig,
+                  tracks: list[str]) -> tuple[EvalJob, list[Path]]:  # fmt: skip
+    """A run's evaluation on the held-out ``tracks`` (one worker), and its result files."""
+    out = runs_dir / run.spec.name / HELD_OUT_DIR
+    nir = exportable(run)
+    job = EvalJob(str(out.parent), study.eval_track_episodes, study.eval_seed, str(out),
+                  "nir-ref" if nir else "torch", sigma_delta=converted(run),
+                  tracks=tracks)  # fmt: skip
+    files = [out / (f"{track_stem(t)}/deploy.json" if nir else f"{track_stem(t)}.json")
+             for t in tracks]  # fmt: skip
+    return job, files
+
+
+def evaluate_held_out(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
+                      reporter: Reporter) -> dict[str, list[HeldOut]]:  # fmt: skip
+    """Each run on the study's held-out tracks (``eval_tracks``), ``eval_track_episodes``
+    seeded episodes each on its evaluation backend, where no result newer than its checkpoint
+    exists; by run name (empty when the study has no held-out tracks)."""
+    pairs = held_out_tracks(study.eval_tracks)
+    if not pairs:
+        return {}
+    tracks = [t for _, t in pairs]
+    todo: list[tuple[str, WorkerRequest]] = []
+    for run in runs:
+        job, files = _held_out_job(run, runs_dir, study, tracks)
+        checkpoint = runs_dir / run.spec.name / "checkpoint.pt"
+        if any(_stale(f, checkpoint) for f in files):
+            todo.append((run.spec.name, job))
+    _run_all(todo, jobs, reporter, "held-out evaluations")
+    out = {}
+    for run in runs:
+        files = _held_out_job(run, runs_dir, study, tracks)[1]
+        out[run.spec.name] = [
+            _held_out(track_stem(t), group, _summary(f).summary)
+            for (group, t), f in zip(pairs, files, strict=True)
+        ]
+    return out
+
+
+def _held_out(track: str, group: str, s: EvalSummary) -> HeldOut:
+    return HeldOut(track=track, group=group, tuning_track=is_tuning_track(track),
+                   episodes=s.episodes, success_rate=s.success_rate, mean_return=s.mean_return,
+                   crashes=s.crashes)  # fmt: skip
 
 
 def median_seed(records: list[RunRecord]) -> RunRecord:

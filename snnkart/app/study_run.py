@@ -31,15 +31,28 @@ from snnkart.app.launch import LocalPool, RunResult, RunSpec
 from snnkart.app.protocol import data_problem
 from snnkart.app.provenance import machine_info
 from snnkart.app.reporter import Reporter
-from snnkart.app.study_eval import Evaluation, deploy_median_seeds, eval_backend, evaluate
-from snnkart.app.study_types import STUDY_SCHEMA, Run, StudyConfig, track_stem
+from snnkart.app.study_eval import (
+    Evaluation,
+    deploy_median_seeds,
+    eval_backend,
+    evaluate,
+    evaluate_held_out,
+)
+from snnkart.app.study_types import (
+    STUDY_SCHEMA,
+    Run,
+    StudyConfig,
+    held_out_tracks,
+    track_stem,
+)
 from snnkart.envs.spec import ENV_REVISION
 from snnkart.envs.tracks import load_track
-from snnkart.errors import UsageError
+from snnkart.errors import TrackError, UsageError
 from snnkart.io import write_text
 from snnkart.report.study_record import (
     STUDY,
     Curve,
+    HeldOut,
     RunRecord,
     StudyRecord,
     StudySettings,
@@ -78,7 +91,13 @@ def load_study(path: Path) -> StudyConfig:
         raise UsageError(f"{path}: {where}: {first['msg']}") from exc
     if study.schema_ != STUDY_SCHEMA:
         raise UsageError(f"{path}: schema {study.schema_!r}; this snnkart reads {STUDY_SCHEMA!r}")
-    problem = data_problem(study.data, study.seeds, study.tracks)
+    held_out = [track for _, track in held_out_tracks(study.eval_tracks)]
+    for track in held_out:
+        try:
+            load_track(track)
+        except TrackError as exc:
+            raise UsageError(f"{path}: eval_tracks: {exc}") from exc
+    problem = data_problem(study.data, study.seeds, [*study.tracks, *held_out])
     if problem:
         raise UsageError(f'{path}: data = "{study.data}", but {problem}')
     return study
@@ -207,7 +226,7 @@ def steps_to(finishes: int, c: Curve) -> int | None:
 
 
 def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
-               evaluation: Evaluation) -> RunRecord:  # fmt: skip
+               evaluation: Evaluation, held_out: list[HeldOut] | None) -> RunRecord:  # fmt: skip
     c = curve(runs_dir / run.spec.name)
     return RunRecord(
         name=run.spec.name, track=run.track, env=run.env, policy=run.policy,
@@ -226,7 +245,7 @@ def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
         eval_stood_still=evaluation.summary.stood_still,
         eval_spikes_per_step=evaluation.spikes_per_step,
         eval_counts_per_step=evaluation.counts_per_step,
-        sigma_delta_counts=evaluation.sigma_delta_counts, curve=c,
+        sigma_delta_counts=evaluation.sigma_delta_counts, held_out=held_out, curve=c,
     )  # fmt: skip
 
 
@@ -254,8 +273,11 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
         raise UsageError(f"{len(failed)} runs did not finish, e.g. {failed[0].name}: "
                          f"{failed[0].status} ({failed[0].error})")  # fmt: skip
     train_wall = time.perf_counter() - start
-    evaluations = evaluate(runs, runs_dir, study, jobs or os.cpu_count() or 1, reporter)
-    records = [run_record(run, res, runs_dir, study, evaluations[run.spec.name])
+    width = jobs or os.cpu_count() or 1
+    evaluations = evaluate(runs, runs_dir, study, width, reporter)
+    held_out = evaluate_held_out(runs, runs_dir, study, width, reporter)
+    records = [run_record(run, res, runs_dir, study, evaluations[run.spec.name],
+                          held_out.get(run.spec.name))
                for run, res in zip(runs, results, strict=True)]  # fmt: skip
     record = StudyRecord(
         schema=RECORD_SCHEMA,

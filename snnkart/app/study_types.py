@@ -12,6 +12,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from snnkart.app.launch import RunSpec
 from snnkart.app.protocol import DataKind
+from snnkart.errors import UsageError
 
 STUDY_SCHEMA = "snnkart/study-config/v1"
 
@@ -40,6 +41,12 @@ class StudyConfig(BaseModel):
         5, ge=0, description="episodes of each SNN cell's median seed on lava-sim (0: none)"
     )
     eval_seed: int = 10_000
+    eval_tracks: list[str] = Field(
+        default_factory=list,
+        description="held-out tracks every run is also evaluated on: built-in names, track "
+        "files, or folders of track files (a folder is one group, its tracks averaged)",
+    )
+    eval_track_episodes: int = Field(10, ge=1, description="seeded episodes per held-out track")
     sets: list[str] = Field(default_factory=list, description="KEY=VALUE for every run")
     cells: dict[str, list[str]] = Field(
         default_factory=dict,
@@ -85,3 +92,19 @@ class Run:
 def track_stem(track: str) -> str:
     """A study track's short name in cell and run labels: a built-in's name, a file's stem."""
     return Path(track).stem if track.endswith(".toml") else track
+
+
+def held_out_tracks(groups: list[str]) -> list[tuple[str, str]]:
+    """The held-out tracks of ``eval_tracks`` entries as (group, track): a folder gives each
+    of its ``*.toml`` files (sorted), anything else itself."""
+    out = []
+    for group in groups:
+        folder = Path(group)
+        if folder.is_dir():
+            files = sorted(folder.glob("*.toml"))
+            if not files:
+                raise UsageError(f"eval_tracks: the folder {group} holds no *.toml track file")
+            out += [(group, str(f)) for f in files]
+        else:
+            out.append((group, group))
+    return out

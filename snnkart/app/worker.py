@@ -18,7 +18,7 @@ from __future__ import annotations
 import json
 import signal
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from snnkart import faults
@@ -50,6 +50,9 @@ class EvalJob:
     precision: str = "fixed"
     kind: str = "eval"
     sigma_delta: bool = False  # a ReLU ANN run converted to sigma-delta before it runs
+    tracks: list[str] = field(default_factory=list)
+    """Evaluate on each of these tracks instead of the run's own, into ``out/<stem>.json``
+    (torch) or ``out/<stem>/`` (a NIR backend): one process for a run's held-out tracks."""
 
 
 WorkerRequest = TrainJob | EvalJob
@@ -93,21 +96,32 @@ def run(request: WorkerRequest) -> int:
         # a launch list says how long each run is: resuming with a longer one extends it
         total = cfg.total_steps if request.resume else None
         return run_training(cfg, Path(request.out), reporter, request.resume, total)
-    from snnkart.app.evaluate import run_eval, run_eval_exported
-
     if request.episodes < 1:
         raise UsageError(f"episodes must be >= 1, got {request.episodes}")
     run_dir, out = Path(request.run_dir), Path(request.out)
-    if request.backend == "torch":
-        run_eval(run_dir, request.episodes, request.seed, None, False, None, out, reporter)
-    else:
-        from snnkart.eval.request import DeployRequest
-
-        deploy = DeployRequest(
-            run_dir, request.backend, request.precision, request.episodes, request.seed, out=out
-        )
-        run_eval_exported(run_dir, None, deploy, reporter, sigma_delta=request.sigma_delta)
+    if not request.tracks:
+        _evaluate(request, run_dir, out, None, reporter)
+    for track in request.tracks:
+        stem = Path(track).stem if track.endswith(".toml") else track
+        where = out / (f"{stem}.json" if request.backend == "torch" else stem)
+        _evaluate(request, run_dir, where, track, reporter)
     return 0
+
+
+def _evaluate(request: EvalJob, run_dir: Path, out: Path, track: str | None,
+              reporter: LineReporter) -> None:  # fmt: skip
+    """One evaluation of the request's run, on ``track`` (None: its own), into ``out``."""
+    from snnkart.app.evaluate import run_eval, run_eval_exported
+
+    if request.backend == "torch":
+        run_eval(run_dir, request.episodes, request.seed, None, False, None, out, reporter,
+                 track=track)  # fmt: skip
+        return
+    from snnkart.eval.request import DeployRequest
+
+    deploy = DeployRequest(run_dir, request.backend, request.precision, request.episodes,
+                           request.seed, track=track, out=out)  # fmt: skip
+    run_eval_exported(run_dir, None, deploy, reporter, sigma_delta=request.sigma_delta)
 
 
 def main(argv: list[str] | None = None) -> int:

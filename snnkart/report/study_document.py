@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.report.held_out import held_out_lines
 from snnkart.report.plots import _figure
 from snnkart.report.study_record import (
     CellSummary,
@@ -94,6 +95,7 @@ def markdown(record: StudyRecord, original: dict[str, dict[str, float]]) -> str:
                     label = f"{env} · {variant}" if variant else env
                     lines += _rows(label, by, original.get(env) if comparable else None)
         lines += ["", *_deployed([d for d in record.deployed if d.track == track])]
+    lines += held_out_lines(record)
     w = record.wall_clock
     lines += [f"Training {w.train_seconds / 60:.1f} min and evaluation "
               f"{w.eval_seconds / 60:.1f} min of wall-clock for {w.runs} runs "

@@ -12,10 +12,12 @@ from typing import Any
 from snnkart.contract.deploy_record import StepCounts
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind, key, omit_if
 
-STUDY = RecordKind("study", 3, rerun="snnkart study")
+STUDY = RecordKind("study", 4, rerun="snnkart study")
 """v2 (issue 31): the study's data kind, and per run the evaluation's mean lap time and counts
 per env step, per cell the chip's synaptic operations; v1 files load without them. v3 (issue
-34): a sigma-delta run's ``sigma_delta_counts``; v2 files load without them."""
+34): a sigma-delta run's ``sigma_delta_counts``; v2 files load without them. v4 (issue 35):
+the study's ``eval_tracks`` and ``eval_track_episodes``, and per run ``held_out`` (its
+evaluation on each held-out track); v3 files load without them."""
 SCHEMA_FILE = Path(__file__).with_name("study.schema.json")
 
 
@@ -35,6 +37,8 @@ class StudySettings:
     eval_episodes: int
     deploy_episodes: int = 0
     eval_seed: int = 10_000
+    eval_tracks: list[str] = field(default_factory=list)
+    eval_track_episodes: int = 10
     sets: list[str] = field(default_factory=list)
     cells: dict[str, list[str]] = field(default_factory=dict)
     variants: dict[str, list[str]] = field(default_factory=dict)
@@ -54,6 +58,22 @@ class Curve:
     finishes: list[int]
     returns: list[float | None] = field(metadata=key("return"))
     seconds: list[float] = field(default_factory=list)
+
+
+@dataclass(frozen=True, kw_only=True)
+class HeldOut:
+    """A run's evaluation on one held-out track (the study's ``eval_tracks``): the track's
+    short name, the ``eval_tracks`` entry it came from (a folder is one group), and what the
+    seeded episodes gave, on the run's evaluation backend."""
+
+    track: str
+    group: str
+    tuning_track: bool
+    """A tuning track of the results protocol (docs/results.md): tables mark its results."""
+    episodes: int
+    success_rate: float
+    mean_return: float
+    crashes: int
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,6 +106,8 @@ class RunRecord:
     """A sigma-delta run's evaluation counts per env step: ``dataclasses.asdict`` of
     :meth:`snnkart.energy.sd_counts.SigmaDeltaCounts.of_deploy` (what ``snnkart report --sweep``
     prices with ``sd_terms``)."""
+    held_out: list[HeldOut] | None = field(default=None, metadata=OMIT_NONE)
+    """The run on each held-out track, in ``eval_tracks`` order (None: the study has none)."""
     curve: Curve
 
     @property
