@@ -89,12 +89,12 @@ def test_every_run_is_evaluated_on_the_held_out_tracks(tmp_path: Path) -> None:
 
 def test_held_out_tracks_follow_the_protocol_and_must_exist(tmp_path: Path) -> None:
     assert load_study(_config(tmp_path, ["benchmarks/tracks/zigzag.toml", "small_S"])).eval_tracks
-    with pytest.raises(UsageError, match="track 'benchmarks/tracks/ring.toml' is not reporting"):
+    with pytest.raises(UsageError, match=r"track .benchmarks/tracks/ring\.toml. is not reporting"):
         load_study(_config(tmp_path, ["benchmarks/tracks/ring.toml"]))
-    with pytest.raises(UsageError, match="eval_tracks: track 'nowhere.toml' is neither"):
+    with pytest.raises(UsageError, match=r"eval_tracks: track .nowhere\.toml. is neither"):
         load_study(_config(tmp_path, ["nowhere.toml"]))
     (tmp_path / "empty").mkdir()
-    with pytest.raises(UsageError, match="holds no \\*.toml track file"):
+    with pytest.raises(UsageError, match=r"holds no \*\.toml track file"):
         load_study(_config(tmp_path, [str(tmp_path / "empty")]))
     with pytest.raises(UsageError, match="is not tuning data"):
         load_study(_config(tmp_path, [str(GENERATED)], data="tuning"))
