@@ -211,7 +211,7 @@ def test_the_committed_studies_plan(path: Path) -> None:
     runs = plan(load_study(path))
     assert runs and len({r.spec.name for r in runs}) == len(runs)
     for run in runs:
-        assert (ROOT / run.track).is_file() or run.track in ("small_S", "big_S")
+        assert (ROOT / run.track).is_file() or run.track in ("small_S", "big_S", "random")
 
 
 def test_the_median_is_drawn_while_every_seed_trains_and_each_seed_to_its_end() -> None:

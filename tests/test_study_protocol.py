@@ -87,7 +87,7 @@ def test_a_reporting_study_may_train_on_the_originals_tracks_with_reporting_seed
 
 def test_the_committed_studies_declare_their_data() -> None:
     kinds = {p.stem: load_study(p).data for p in sorted((ROOT / "studies").glob("*.toml"))}
-    for name in ("held-out-reporting", "bc-steer", "bc-gazebo"):
+    for name in ("held-out-reporting", "bc-steer", "bc-gazebo", "generalisation"):
         assert kinds.pop(name) == "reporting", name
     assert set(kinds.values()) == {"tuning"} and {"learning", "sparsity"} <= set(kinds)
 
