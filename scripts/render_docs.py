@@ -7,8 +7,11 @@
 ``python -m benchmarks.bench_main_job`` and ``cp runs/bench_main_job/report/report.json
 docs/energy/``). ``docs/frontier.md``: the temporal-sparsity frontier per env and its verdicts,
 priced from ``docs/frontier/study.json`` (``snnkart study studies/frontier.toml``'s record,
-copied in), and its figure ``docs/frontier/frontier.png``. ``tests/test_docs.py`` renders the
-pages again and fails if one differs.
+copied in), and its figure ``docs/frontier/frontier.png``. The published study tables
+(:data:`STUDIES`: the behaviour-cloning studies in ``docs/training.md``, the generalisation
+study in ``docs/tracks.md``) from their committed ``study.json``, each a reporting study run at
+a clean commit (``snnkart study studies/<name>.toml``; the record copied in).
+``tests/test_docs.py`` renders the pages again and fails if one differs.
 """
 
 from __future__ import annotations
@@ -16,8 +19,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from snnkart.app.study_summary import ORIGINAL
 from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
 from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
+from snnkart.report.study_blocks import study_block
 from snnkart.report.study_record import StudyRecord
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,10 +30,15 @@ FRONTIER = "docs/frontier/study.json"
 PAGES = {"docs/energy.md": "docs/energy/report.json", "docs/frontier.md": FRONTIER,
          "README.md": FRONTIER}  # fmt: skip
 FIGURE = "docs/frontier/frontier.png"
+STUDIES: set[tuple[str, str]] = set()  # a page's block per study.json: (page, source)
 
 
 def rendered(page: str, source: str) -> str:
     """The page's text with its generated block rendered from ``source``."""
+    if (page, source) in STUDIES:
+        record = StudyRecord.read(ROOT / source)
+        block = study_block(record, source, BEGIN, END, ORIGINAL)
+        return replace_block((ROOT / page).read_text(), block, source)
     if source == FRONTIER:
         summary = frontier(StudyRecord.read(ROOT / source))
         render = verdicts_block if page == "README.md" else frontier_block
@@ -38,8 +48,13 @@ def rendered(page: str, source: str) -> str:
     return replace_block((ROOT / page).read_text(), block)
 
 
+def blocks() -> list[tuple[str, str]]:
+    """Every (page, source) pair with a generated block."""
+    return [*PAGES.items(), *sorted(STUDIES)]
+
+
 def main() -> None:
-    for page, source in PAGES.items():
+    for page, source in blocks():
         (ROOT / page).write_text(rendered(page, source))
         print(f"{page}: rendered from {source}")
     summary = frontier(StudyRecord.read(ROOT / FRONTIER))

@@ -55,9 +55,12 @@ def energy_block(report: dict[str, Any], source: str) -> str:
     )
 
 
-def replace_block(page: str, block: str) -> str:
-    """``page`` with its generated block replaced by ``block`` (one block per page)."""
-    pattern = re.compile(r"<!-- generated from .*?" + re.escape(END), re.S)
+def replace_block(page: str, block: str, source: str | None = None) -> str:
+    """``page`` with its generated block replaced by ``block``: the block generated from
+    ``source`` when given (a page may hold one block per source), else the page's one block."""
+    head = re.escape(BEGIN.format(source=source)) if source else r"<!-- generated from .*?"
+    pattern = re.compile(head + r".*?" + re.escape(END), re.S)
     if not pattern.search(page):
-        raise ValueError("the page has no generated block; add the two marker lines")
+        where = f" from {source}" if source else ""
+        raise ValueError(f"the page has no generated block{where}; add the two marker lines")
     return pattern.sub(lambda _: block, page, count=1)

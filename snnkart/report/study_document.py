@@ -79,22 +79,9 @@ def markdown(record: StudyRecord, original: dict[str, dict[str, float]]) -> str:
                   "evaluated in torch: Lava's LIF cannot run those biases.", ""]  # fmt: skip
     if record.only:
         lines += [f"A piece of the study: the cells matching `{' '.join(record.only)}`.", ""]
-    cells = record.cells
     for track in record.tracks():
-        lines += [f"## {Path(track).stem}", "",
-                  f"| env | ANN first finish | SNN first finish | ANN {n} finishes | "
-                  f"SNN {n} finishes | SNN % of ANN | ANN eval | SNN eval | SNN spikes/step |",
-                  "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
-        for env in study.envs:
-            # the original's numbers: its track and its mark of 300 finishes only
-            comparable = Path(track).stem == "small_S" and n == 300
-            for variant in study.variant_names:
-                by = {c.policy: c for c in cells
-                      if (c.track, c.env, c.variant) == (track, env, variant)}  # fmt: skip
-                if by:
-                    label = f"{env} · {variant}" if variant else env
-                    lines += _rows(label, by, original.get(env) if comparable else None)
-        lines += ["", *_deployed([d for d in record.deployed if d.track == track])]
+        lines += [f"## {Path(track).stem}", "", *track_table(record, track, original), ""]
+        lines += _deployed([d for d in record.deployed if d.track == track])
     lines += held_out_lines(record)
     w = record.wall_clock
     lines += [f"Training {w.train_seconds / 60:.1f} min and evaluation "
@@ -105,6 +92,26 @@ def markdown(record: StudyRecord, original: dict[str, dict[str, float]]) -> str:
         m = record.machine
         lines += [f"Commit {m['commit']}, {m['cores']} cores of {m['cpu']}, {m['date']}.", ""]
     return "\n".join(lines)
+
+
+def track_table(record: StudyRecord, track: str,
+                original: dict[str, dict[str, float]]) -> list[str]:  # fmt: skip
+    """A track's table: per env (and variant) the ANN and SNN cells, beside the original's
+    numbers where they compare (small_S at 300 finishes)."""
+    study, n = record.study, record.study.finishes
+    lines = [f"| env | ANN first finish | SNN first finish | ANN {n} finishes | "
+             f"SNN {n} finishes | SNN % of ANN | ANN eval | SNN eval | SNN spikes/step |",
+             "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for env in study.envs:
+        # the original's numbers: its track and its mark of 300 finishes only
+        comparable = Path(track).stem == "small_S" and n == 300
+        for variant in study.variant_names:
+            by = {c.policy: c for c in record.cells
+                  if (c.track, c.env, c.variant) == (track, env, variant)}  # fmt: skip
+            if by:
+                label = f"{env} · {variant}" if variant else env
+                lines += _rows(label, by, original.get(env) if comparable else None)
+    return lines
 
 
 def _deployed(entries: list[DeployedRun]) -> list[str]:

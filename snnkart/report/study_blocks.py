@@ -1,0 +1,56 @@
+"""Published study tables in the documentation: a reporting study's ``study.json`` rendered
+into a page's generated block (``scripts/render_docs.py``), never typed by hand. A tuning study
+or one run at a commit with uncommitted changes is refused: published tables are reporting
+data from a clean commit (docs/results.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from snnkart.errors import ReportError
+from snnkart.report.held_out import held_out_lines
+from snnkart.report.study_document import track_table
+from snnkart.report.study_record import StudyRecord
+
+
+def check_publishable(record: StudyRecord, source: str) -> str:
+    """The record's commit, if it may fill a published table; else a one-line refusal."""
+    study = record.study
+    if study.data != "reporting":
+        raise ReportError(
+            f"{source}: {study.data or 'undeclared'} data cannot fill a published table; run "
+            'a study with data = "reporting" (docs/results.md)'
+        )
+    commit = str((record.machine or {}).get("commit") or "unknown")
+    if commit.endswith("-dirty") or commit == "unknown" or record.only:
+        raise ReportError(
+            f"{source}: made at commit {commit}{' (a piece)' if record.only else ''}; run the "
+            "whole study again at a clean commit"
+        )
+    return commit
+
+
+def study_block(record: StudyRecord, source: str, begin: str, end: str,
+                original: dict[str, dict[str, float]]) -> str:  # fmt: skip
+    """The block: what was run and where, each track's table, and the held-out table."""
+    commit = check_publishable(record, source)
+    study, w = record.study, record.wall_clock
+    seeds = f"{study.seeds[0]}–{study.seeds[-1]}" if len(study.seeds) > 1 else str(study.seeds[0])
+    lines = [
+        begin.format(source=source),
+        "",
+        f"`{study.name}`: {len(study.seeds)} reporting seeds ({seeds}) per cell, at most "
+        f"{study.steps:,} env steps per run; evaluation {study.eval_episodes} seeded episodes "
+        "(ANNs in torch, SNNs on the numpy reference in fixed point). Medians over seeds with "
+        f"(min–max). Commit {commit}; {w.runs} runs, {w.train_seconds / 60:.0f} min of "
+        f"training and {w.eval_seconds / 60:.0f} min of evaluation on "
+        f"{(record.machine or {}).get('cores', '?')} cores.",
+        "",
+    ]
+    for track in record.tracks():
+        if len(study.tracks) > 1 or study.eval_tracks:
+            lines += [f"Trained on {Path(track).stem}:", ""]
+        lines += [*track_table(record, track, original), ""]
+    held = held_out_lines(record)
+    lines += held[2:]  # without its heading
+    return "\n".join([*lines, end]).replace("\n\n\n", "\n\n")

@@ -1,0 +1,49 @@
+"""Published study tables come from a reporting study's record at a clean commit, rendered by
+code (``snnkart.report.study_blocks``); anything else is refused in one line."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+from snnkart.app.study_summary import ORIGINAL
+from snnkart.errors import ReportError
+from snnkart.report.docs_block import BEGIN, END, replace_block
+from snnkart.report.study_blocks import study_block
+from snnkart.report.study_document import track_table
+from snnkart.report.study_record import StudyRecord
+
+RECORD = Path(__file__).parent / "data" / "records" / "study.json"
+
+
+def _reporting(record: StudyRecord, commit: str = "abc1234") -> StudyRecord:
+    study = dataclasses.replace(record.study, data="reporting")
+    return dataclasses.replace(record, study=study, machine={**(record.machine or {}),
+                                                              "commit": commit})  # fmt: skip
+
+
+def test_a_tuning_dirty_or_partial_study_is_refused() -> None:
+    record = StudyRecord.read(RECORD)  # tuning data, at a dirty commit
+    with pytest.raises(ReportError, match=r"x.json: tuning data cannot fill a published table"):
+        study_block(record, "x.json", BEGIN, END, ORIGINAL)
+    with pytest.raises(ReportError, match=r"made at commit ab1\w+-dirty; run the whole study"):
+        study_block(_reporting(record, "ab1092d-dirty"), "x.json", BEGIN, END, ORIGINAL)
+    piece = dataclasses.replace(_reporting(record), only=["*/grid-ann"])
+    with pytest.raises(ReportError, match=r"\(a piece\)"):
+        study_block(piece, "x.json", BEGIN, END, ORIGINAL)
+
+
+def test_the_block_holds_the_studys_own_table_and_replaces_only_its_own_block() -> None:
+    record = _reporting(StudyRecord.read(RECORD))
+    block = study_block(record, "a.json", BEGIN, END, ORIGINAL)
+    assert block.startswith(BEGIN.format(source="a.json")) and block.endswith(END)
+    assert "\n".join(track_table(record, "small_S", ORIGINAL)) in block
+    assert "Commit abc1234;" in block and "reporting seeds" in block
+    other = BEGIN.format(source="b.json") + "\nold b\n" + END
+    page = f"# P\n\n{BEGIN.format(source='a.json')}\nold a\n{END}\n\ntext\n\n{other}\n"
+    new = replace_block(page, block, "a.json")
+    assert "old a" not in new and other in new and block in new
+    with pytest.raises(ValueError, match=r"no generated block from c\.json"):
+        replace_block(page, block, "c.json")
