@@ -105,12 +105,19 @@ def track_table(record: StudyRecord, track: str,
     for env in study.envs:
         # the original's numbers: its track and its mark of 300 finishes only
         comparable = Path(track).stem == "small_S" and n == 300
+        orig = original.get(env) if comparable else None
+        shown = False
         for variant in study.variant_names:
             by = {c.policy: c for c in record.cells
                   if (c.track, c.env, c.variant) == (track, env, variant)}  # fmt: skip
             if by:
                 label = f"{env} · {variant}" if variant else env
-                lines += _rows(label, by, original.get(env) if comparable else None)
+                lines += _rows(label, by, orig)
+                shown = True
+        if orig and shown:  # the original's row once per env, under all its variants
+            lines.append(f"| *original* | {_k(orig['ann_first'])} | {_k(orig['snn_first'])} | "
+                         f"{_k(orig['ann_300'])} | {_k(orig['snn_300'])} | "
+                         f"{orig['snn_pct_of_ann']:.1f} % | | | |")  # fmt: skip
     return lines
 
 
@@ -154,10 +161,6 @@ def _rows(env: str, by: dict[str, CellSummary], orig: dict[str, float] | None) -
            _pct(by["snn"].eval_success_rate) if "snn" in by else "-",
            _count(snn.eval_spikes_per_step if snn else None)]  # fmt: skip
     lines = ["| " + " | ".join(row) + " |"]
-    if orig:
-        lines.append(f"| *original* | {_k(orig['ann_first'])} | {_k(orig['snn_first'])} | "
-                     f"{_k(orig['ann_300'])} | {_k(orig['snn_300'])} | "
-                     f"{orig['snn_pct_of_ann']:.1f} % | | | |")  # fmt: skip
     return lines
 
 
