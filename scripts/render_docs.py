@@ -30,7 +30,10 @@ FRONTIER = "docs/frontier/study.json"
 PAGES = {"docs/energy.md": "docs/energy/report.json", "docs/frontier.md": FRONTIER,
          "README.md": FRONTIER}  # fmt: skip
 FIGURE = "docs/frontier/frontier.png"
-STUDIES: set[tuple[str, str]] = set()  # a page's block per study.json: (page, source)
+STUDIES = {  # a page's block per study.json: (page, source)
+    ("docs/training.md", "docs/bc/steer.json"),
+    ("docs/training.md", "docs/bc/gazebo.json"),
+}
 
 
 def rendered(page: str, source: str) -> str:

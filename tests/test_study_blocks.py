@@ -47,3 +47,14 @@ def test_the_block_holds_the_studys_own_table_and_replaces_only_its_own_block() 
     assert "old a" not in new and other in new and block in new
     with pytest.raises(ValueError, match=r"no generated block from c\.json"):
         replace_block(page, block, "c.json")
+
+
+def test_a_published_ablation_shows_the_originals_row_once_per_env() -> None:
+    """The BC study (two variants of one env) beside the original: one original row, under
+    both variants, in the committed page's block."""
+    record = StudyRecord.read(Path(__file__).parents[1] / "docs/bc/steer.json")
+    block = study_block(record, "docs/bc/steer.json", BEGIN, END, ORIGINAL)
+    rows = [line for line in block.splitlines() if line.startswith("| ")]
+    assert [r.split(" | ")[0] for r in rows[1:]] == [
+        "| env", "| steer · scratch", "| steer · bc", "| *original*"][1:]  # fmt: skip
+    assert "better/worse than the original's single run" in block

@@ -44,7 +44,13 @@ def study_block(record: StudyRecord, source: str, begin: str, end: str,
         "(ANNs in torch, SNNs on the numpy reference in fixed point). Medians over seeds with "
         f"(min–max). Commit {commit}; {w.runs} runs, {w.train_seconds / 60:.0f} min of "
         f"training and {w.eval_seconds / 60:.0f} min of evaluation on "
-        f"{(record.machine or {}).get('cores', '?')} cores.",
+        f"{(record.machine or {}).get('cores', '?')} cores."
+        + (
+            " ✓/✗: better/worse than the original's single run of that cell (kart-simulator, "
+            "small_S, 300 finishes)."
+            if "small_S" in study.tracks and study.finishes == 300
+            else ""
+        ),
         "",
     ]
     for track in record.tracks():
