@@ -1,6 +1,6 @@
 """The main job, measured: ``snnkart demo`` run as a user runs it, its results gathered in one JSON.
 
-It trains the grid/small_S SNN (400k steps, seed 101: ``snnkart.app.pipeline.DEMO_SEED``), scores
+It trains the grid/small_S SNN (300k steps, seed 101: ``snnkart.app.pipeline.DEMO_SEED``), scores
 the torch policy and its fixed-point twin on the same seeded episodes, exports to NIR and drives
 the kart on Lava in fixed point and in float with every env step checked against the numpy
 reference. The JSON keeps what the README quotes from it: training speed and first finish, success
