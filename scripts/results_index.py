@@ -137,7 +137,7 @@ def _what(name: str, record: dict[str, Any]) -> str:
     if isinstance(study, dict):
         only = record.get("only")
         where = f", runs {', '.join(only)}" if only else ""
-        return f"{FAMILIES[_family(name)]} \"{study.get('name', '')}\"{where}"
+        return f'{FAMILIES[_family(name)]} "{study.get("name", "")}"{where}'
     own = record.get("what") or record.get("note")
     if isinstance(own, str):
         return own.split(";")[0].split(". ")[0].strip()
@@ -237,7 +237,9 @@ def index(rows: list[Entry]) -> str:
     ]
     for row in rows:
         cited = ", ".join(row.cited_by) or "nothing"
-        lines.append(f"| `{row.name}` | {_cell(row.what)} | {cited} | `{row.commit}` | {row.data} |")
+        lines.append(
+            f"| `{row.name}` | {_cell(row.what)} | {cited} | `{row.commit}` | {row.data} |"
+        )
     return "\n".join(lines) + "\n"
 
 
