@@ -138,7 +138,7 @@ def _what(name: str, record: dict[str, Any]) -> str:
         only = record.get("only")
         where = f", runs {', '.join(only)}" if only else ""
         return f'{FAMILIES[_family(name)]} "{study.get("name", "")}"{where}'
-    own = record.get("what") or record.get("note")
+    own = record.get("what")
     if isinstance(own, str):
         return own.split(";")[0].split(". ")[0].strip()
     family = _family(name)
