@@ -98,7 +98,7 @@ def test_the_committed_studies_declare_their_data() -> None:
 
 def test_no_package_module_reads_benchmark_results() -> None:
     """Results are data a study made, never an input of the package: a default is a constant
-    in code, and why it is what it is goes in docs/results.md."""
+    in code, and why it is what it is goes in docs/decisions.md."""
     offenders = [
         p.relative_to(ROOT).as_posix()
         for p in sorted((ROOT / "snnkart").rglob("*.py"))

@@ -38,7 +38,7 @@ and the README quotes from it are data no choice was made on."""
 DEMO_SNN_SETTINGS: dict[str, object] = {"snn.num_steps": 4, "snn.rate_reg": 0.05}
 """The demo's own SNN settings on top of the grid SNN defaults (the per-env training defaults
 stay as they are): T = 4 and a firing-rate penalty of 0.05, the sparse point of the sparsity
-study (why: docs/results.md, "Why the defaults are what they are")."""
+study (why: docs/decisions.md#demo-snn-sparsity)."""
 QUANT_EPISODES = 50
 EVAL_SEED = 10_000
 SNN_RUN, ANN_RUN, POLICY_FILE, REPORT_DIR = "snn", "ann", "policy.nir", "report"

@@ -188,36 +188,18 @@ class EnvConfig(_Frozen):
 
 
 GAZEBO_REWARD = {"stall": 0.01}
-"""gazebo's reward defaults. Without the stall term, ANN seeds on small_S learned to park
-before a corner until the stand-still limit: seed 7 never finished in 300k steps, seed 10 not
-in 288k, seed 5 first at 266k (every-seed-0abeccf-small_S-partial.json).
-With it, all of seeds 1-10 finished, ANN and SNN (study-43bb29c-small_S-stall0.01 for seeds
-1-5, study-10f0252-gazebo-stall0.01-s6-10). A costlier, sooner stand-still ending instead did
-not do it (study-10f0252-gazebo-standstill2-100steps: an SNN seed never finished). The
-original ended an episode that receded from its target for 30 steps ("deserting")."""
+"""gazebo's reward defaults: a stall term, so that seeds do not learn to park before a corner
+until the stand-still limit (why: docs/decisions.md#gazebo-stall-term). The original ended an
+episode that receded from its target for 30 steps ("deserting")."""
 
 STEER_REWARD = {"stall": 0.01, "stand_still": 2.0}
-"""steer's reward defaults. Parking before a corner until the stand-still limit cost 1.0,
-200 steps away: 0.37 at decision time with gamma 0.995, far less than a crash (1.0 at once),
-so seeds that had not yet learned a corner learned to park there. On the ring track (the
-track of issue 17's report), ANN seeds 1 and 10 parked for good (8/10 seeds finished,
-held-out-7028a5d-ring-steer-before). The stall term alone did not do it on small_S (ANN seed
-5 never finished, study-43bb29c-small_S-stall0.01). With both, parking costs about 1.5 at
-decision time: small_S ANN 10/10, ring ANN 9/10 (seed 8 now crashes at the first corner
-instead, study-7028a5d-steer-stall0.01-standstill2-ann), SNN 10/10 on both
-(study-7028a5d-steer-stall0.01-standstill2-snn)."""
+"""steer's reward defaults: a stall term and a stand-still ending that costs 2 (a crash costs 1),
+so that parking before a corner does not pay (why: docs/decisions.md#steer-parking)."""
 
 GRID_REWARD = {"wall_per_m_s": 1.0, "stall": 0.01, "stand_still": 2.0}
-"""grid's reward defaults. Grid's kart keeps its momentum (4 m/s, 0.15 m/s of impulse per
-step): on the hairpins track (two U-turns in 1.6 m corridors, never tuned on) it learned to
-race into the U-turns' walls, where braking early was never found: ANN 8/10 seeds finished
-within 300k steps, first at 135k-282k, SNN 1 of the first 6 (held-out-514c598-hairpins-grid,
-with RewardConfig's defaults). A crash costing 1 more per m/s of impact speed pays for every
-bit of braking before a wall: ANN 4/4 of the seeds that had failed or come late (82k-100k).
-The SNN then parked instead (2 of 4 stood still), so it also gets steer's stall term and
-stand-still ending: seeds 1 and 3, which never finished before, first at 90k and 72k
-(screen-fa96cb4-hairpins-grid, -2; 10 seeds per track in held-out-* at the commit that set
-these)."""
+"""grid's reward defaults: a crash costs 1 more per m/s of impact speed, which pays for braking
+before a wall (grid's kart keeps its momentum), and steer's stall term and stand-still ending
+(why: docs/decisions.md#grid-impact-speed)."""
 
 
 class GridConfig(EnvConfig):

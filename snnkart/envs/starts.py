@@ -4,7 +4,8 @@ A policy that only ever starts at the spawn meets the track's corners one after 
 reaches corner k only once it drives corner k-1. Grid's kart, whose actions push it in fixed
 world directions, has to learn every corner of a loop as a new manoeuvre, and on the held-out
 ring it learned them about 25k-75k steps apart. Starting some training episodes just past a
-random checkpoint shows it every corner from the first iteration (``start_spread``).
+random checkpoint shows it every corner from the first iteration (``start_spread``; why:
+docs/decisions.md#grid-spread-starts).
 
 Such an episode is not a lap: the env reports ``lap_finished`` only for episodes that started
 at the spawn, so the first finish and the cumulative finishes of a study count laps alone.
