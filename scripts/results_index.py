@@ -27,6 +27,7 @@ from __future__ import annotations
 import fnmatch
 import json
 import re
+import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -178,10 +179,18 @@ def _seeds_and_tracks(record: dict[str, Any]) -> tuple[set[int], set[str]]:
                     stack.append(value)
     command = record.get("command")
     if isinstance(command, list) and command[1:2] == ["demo"]:
-        seed = command[command.index("--seed") + 1] if "--seed" in command else DEMO_SEED
-        seeds.add(int(seed))
+        seeds.add(_demo_seed(record))
         tracks.add(DEMO_TRACK)
     return seeds, tracks
+
+
+def _demo_seed(record: dict[str, Any]) -> int:
+    """The main job's training seed: DEMO_SEED (101) from tag results-1 on; 1 before it (those
+    records name no seed)."""
+    commit = str((record.get("machine") or {}).get("commit", "")).removesuffix("-dirty")
+    since = subprocess.run(["git", "merge-base", "--is-ancestor", "results-1", commit],
+                           cwd=ROOT, capture_output=True).returncode == 0  # fmt: skip
+    return DEMO_SEED if since else 1
 
 
 def _data(record: dict[str, Any]) -> str:
