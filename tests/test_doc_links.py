@@ -27,7 +27,9 @@ REFERENCE = re.compile(r"^\s*\[[^\]]+\]:\s*<?(\S+?)>?(?:\s|$)", re.M)
 HTML_SRC = re.compile(r"<(?:img|a)\b[^>]*?\b(?:src|href)=\"([^\"]+)\"", re.I)
 HEADING = re.compile(r"^#{1,6}[ \t]+(.+?)[ \t#]*$", re.M)
 RESULT_PATH = re.compile(r"benchmarks/results/([^\s`'\"()\[\]<>|]+)")
-BARE_RESULT = re.compile(r"`((?:study|held-out|screen|every-seed|ablation|bench_[a-z_]+)-[^`\s/]+/?)`")
+BARE_RESULT = re.compile(
+    r"`((?:study|held-out|screen|every-seed|ablation|bench_[a-z_]+)-[^`\s/]+/?)`"
+)
 TAG = re.compile(r"\btag\s+(`[^`]+`)|\btags\s+((?:`[^`]+`(?:,\s*|,?\s+and\s+|,?\s+or\s+)?)+)")
 
 
@@ -143,7 +145,9 @@ def test_every_link_and_image_resolves(page: Path) -> None:
 @pytest.mark.parametrize("page", documents(), ids=lambda p: str(p.relative_to(ROOT)))
 def test_every_cited_result_exists(page: Path) -> None:
     missing = sorted({n for n in result_names(page.read_text()) if not result_exists(n)})
-    assert not missing, f"{page.relative_to(ROOT)} cites results not in benchmarks/results/: {missing}"
+    assert not missing, (
+        f"{page.relative_to(ROOT)} cites results not in benchmarks/results/: {missing}"
+    )
 
 
 def test_every_named_tag_exists() -> None:
