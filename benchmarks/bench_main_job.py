@@ -3,9 +3,9 @@
 It trains the grid/small_S SNN (300k steps, seed 101: ``snnkart.app.pipeline.DEMO_SEED``), scores
 the torch policy and its fixed-point twin on the same seeded episodes, exports to NIR and drives
 the kart on Lava in fixed point and in float with every env step checked against the numpy
-reference. The JSON keeps what the README quotes from it: training speed and first finish, success
-of torch vs fixed point, Lava's parity with the reference, its agreement with the float32 policy,
-and ms per env step.
+reference. The JSON keeps what docs/deployment.md quotes from it: training speed and first finish,
+success of torch vs fixed point, Lava's parity with the reference, its agreement with the float32
+policy, and ms per env step.
 
     python -m benchmarks.bench_main_job [--steps 400000] [--lava-episodes 5]
                                         [--eval-episodes 50] [--runs DIR] [--from-run RUN]

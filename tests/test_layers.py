@@ -1,4 +1,4 @@
-"""The package's one-way layers (README, Architecture) hold: import-linter's contracts in
+"""The package's one-way layers (docs/architecture.md) hold: import-linter's contracts in
 pyproject.toml, run on the installed code. A new module outside the layers, an upward import,
 rl and backends importing each other, or torch, Lava, pygame, typer or rich imported outside
 their packages makes this fail."""

@@ -682,7 +682,7 @@ def test_replay_unknown_mode_fails_cleanly(
 # -- learning ----------------------------------------------------------------------------------
 
 
-# What the README's learning table claims, at small scale and in the default run: a grid
+# What docs/results.md's earlier learning studies claim, at small scale and in the default run: a grid
 # policy trained with the defaults drives a lap in at least 80 % of 20 seeded deterministic
 # evaluation episodes. Seeds are fixed; if a change flips one, run 3 seeds before touching it.
 # The runs stop once they have learned (two checks in a row, 25k steps apart, at >= 80 % on

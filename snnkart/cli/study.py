@@ -12,7 +12,7 @@ from snnkart.cli.guard import guard
 
 
 def study(
-    config: Annotated[Path, typer.Argument(help="the study config (TOML; see the README)")],
+    config: Annotated[Path, typer.Argument(help="the study config (TOML, benchmarks/README.md)")],
     out: Annotated[Path, typer.Option("--out", "-o")] = Path("runs/study"),
     jobs: Annotated[int | None, typer.Option(help="runs at a time (default: one per core)")] = None,
     ray: Annotated[bool, typer.Option(help="run the trainings as Ray Tune trials")] = False,

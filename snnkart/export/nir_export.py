@@ -1,7 +1,7 @@
 """Export a trained spiking actor to NIR (through snntorch's exporter) plus its manifest.
 
 Sharp edges of snntorch 1.0 / nir 1.0.8 this module handles (found by experiment when the
-export was written; the README's "Deployment" section states the contract): a scalar beta or threshold breaks NIR type inference, so each
+export was written; docs/deployment.md states the contract): a scalar beta or threshold breaks NIR type inference, so each
 layer's shared value is written as a per-neuron vector of equal values; the sample input has
 no batch dimension; ``reset_mechanism`` is not exported (NIR LIF resets to ``v_reset``), so only
 reset-to-zero networks are accepted. What a Lava target cannot run is refused with the reason.

@@ -3,7 +3,7 @@ sigma-delta actor (SDNN) is :mod:`snnkart.rl.sdnn`'s, its policy here.
 
 All share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
 The critic is always an MLP: it never leaves the host. The spiking actor is built for
-deployment on Lava (the README's "Deployment" section): reset-to-zero LIF neurons, one
+deployment on Lava (docs/deployment.md): reset-to-zero LIF neurons, one
 beta and one threshold per layer, membranes reset at every env step, no recurrence; or, with
 ``snn.stateful``, membranes that carry across env steps (:class:`StatefulSNNPolicy`).
 """
