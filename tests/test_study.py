@@ -21,7 +21,7 @@ from snnkart.app.study_eval import DEPLOY_DIR, median_seed
 from snnkart.app.study_run import load_study, plan, steps_to
 from snnkart.app.study_summary import pct_of_ann, spread, summarise
 from snnkart.errors import UsageError
-from snnkart.report.study_document import _band
+from snnkart.report.study_plots import _band
 from snnkart.report.study_record import Curve, RunRecord, Spread, StudyRecord
 
 ROOT = Path(__file__).resolve().parents[1]
