@@ -149,7 +149,7 @@ def figure(record: StudyRecord, track: str, key: str) -> Any:
     fig, axes = plt.subplots(nrows, ncols, figsize=(width, height), dpi=110, sharex=True,
                              sharey=True, squeeze=False)  # fmt: skip
     fig.subplots_adjust(left=0.75 / width, right=1 - 0.15 / width, top=1 - top / height,
-                        bottom=bottom / height, wspace=0.15 / PANEL_IN[0],
+                        bottom=bottom / height, wspace=0.25 / PANEL_IN[0],
                         hspace=0.45 / PANEL_IN[1])  # fmt: skip
     for ax, (env, variant) in zip(axes.flat, cells, strict=False):
         _panel(ax, record, (track, env, variant), key)
