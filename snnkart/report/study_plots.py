@@ -45,7 +45,11 @@ def panels(record: StudyRecord, track: str) -> list[tuple[str, str]]:
 
 def plot_names(track: str) -> list[str]:
     """The files :func:`write_plots` writes for ``track``, PNG before SVG per figure."""
-    return [f"{Path(track).stem}-{key}.{suffix}" for key in KEYS for suffix in ("png", "svg")]
+    return [_name(track, key, suffix) for key in KEYS for suffix in ("png", "svg")]
+
+
+def _name(track: str, key: str, suffix: str) -> str:
+    return f"{Path(track).stem}-{key}.{suffix}"
 
 
 def record_commit(record: StudyRecord) -> str:
@@ -177,7 +181,7 @@ def write_plots(record: StudyRecord, out: Path) -> list[Path]:
         for key in KEYS:
             fig = figure(record, track, key)
             for suffix in ("png", "svg"):
-                path = out / f"{Path(track).stem}-{key}.{suffix}"
+                path = out / _name(track, key, suffix)
                 fig.savefig(path, format=suffix)
                 written.append(path)
             plt.close(fig)
