@@ -8,6 +8,7 @@ import dataclasses
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -21,7 +22,7 @@ from snnkart.app.study_eval import DEPLOY_DIR, median_seed
 from snnkart.app.study_run import load_study, plan, steps_to
 from snnkart.app.study_summary import pct_of_ann, spread, summarise
 from snnkart.errors import UsageError
-from snnkart.report.study_document import _band
+from snnkart.report.study_plots import _band
 from snnkart.report.study_record import Curve, RunRecord, Spread, StudyRecord
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -95,6 +96,9 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
     assert "snn_pct_of_ann" in cells[("grid", "snn")]
     text = (out / "study.md").read_text()
     assert "| grid |" in text and "*original*" not in text  # its numbers are for 300 finishes
+    named = re.findall(r"`(plots/[^`]+)`", text)  # study.md names the figures written beside it
+    assert named == ["plots/small_S-finishes.png", "plots/small_S-return.png"]
+    assert all((out / name).is_file() for name in named)
     for key in ("finishes", "return"):
         image = matplotlib.image.imread(out / "plots" / f"small_S-{key}.png")
         assert image.shape[0] > 200 and image.std() > 0.01  # drawn, not blank

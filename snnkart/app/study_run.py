@@ -311,7 +311,8 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
 def write_documents(record: StudyRecord, out: Path) -> None:
     """``study.md`` (the tables beside the original's) and ``plots/`` from a study record."""
     from snnkart.app.study_summary import ORIGINAL
-    from snnkart.report.study_document import markdown, write_plots
+    from snnkart.report.study_document import markdown
+    from snnkart.report.study_plots import write_plots
 
     write_text(out / "study.md", markdown(record, ORIGINAL))
     (out / "plots").mkdir(parents=True, exist_ok=True)

@@ -1,27 +1,13 @@
-"""A study's document and figures: ``study.md`` beside the original's table, and the plots of
-cumulative finishes and returns against training steps (median line, min-max band per policy
-kind; PNG and SVG)."""
+"""A study's document: ``study.md``, its tables beside the original's, naming the figures that
+:mod:`snnkart.report.study_plots` draws from the same record."""
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
-from typing import Any
-
-import numpy as np
 
 from snnkart.report.held_out import held_out_lines
-from snnkart.report.plots import _figure
-from snnkart.report.study_record import (
-    CellSummary,
-    DeployedRun,
-    RunRecord,
-    Spread,
-    StudyRecord,
-    StudySettings,
-)
-
-COLOURS = {"ann": "#1f77b4", "snn": "#d62728"}
+from snnkart.report.study_plots import CAPTION, KEYS, cell_label, plot_names, record_commit
+from snnkart.report.study_record import CellSummary, DeployedRun, Spread, StudyRecord
 
 
 def _k(steps: float | None) -> str:
@@ -82,6 +68,7 @@ def markdown(record: StudyRecord, original: dict[str, dict[str, float]]) -> str:
     for track in record.tracks():
         lines += [f"## {Path(track).stem}", "", *track_table(record, track, original), ""]
         lines += _deployed([d for d in record.deployed if d.track == track])
+        lines += _figures(record, track)
     lines += held_out_lines(record)
     w = record.wall_clock
     lines += [f"Training {w.train_seconds / 60:.1f} min and evaluation "
@@ -111,14 +98,24 @@ def track_table(record: StudyRecord, track: str,
             by = {c.policy: c for c in record.cells
                   if (c.track, c.env, c.variant) == (track, env, variant)}  # fmt: skip
             if by:
-                label = f"{env} · {variant}" if variant else env
-                lines += _rows(label, by, orig)
+                lines += _rows(cell_label(env, variant), by, orig)
                 shown = True
         if orig and shown:  # the original's row once per env, under all its variants
             lines.append(f"| *original* | {_k(orig['ann_first'])} | {_k(orig['snn_first'])} | "
                          f"{_k(orig['ann_300'])} | {_k(orig['snn_300'])} | "
                          f"{orig['snn_pct_of_ann']:.1f} % | | | |")  # fmt: skip
     return lines
+
+
+def _figures(record: StudyRecord, track: str) -> list[str]:
+    """The track's figures: their files, the record and commit they are drawn from (the
+    table's), what they show and why a median band ends early; the first one shown."""
+    stem, pngs = Path(track).stem, [n for n in plot_names(track) if n.endswith(".png")]
+    files = ", ".join(f"`plots/{n}`" for n in pngs)
+    return [f"Figures: {files} (SVG beside them), drawn from this record (commit "
+            f"{record_commit(record)}), the runs of the table above: one panel per cell, the "
+            f"ANN blue, the SNN red. {CAPTION}", "",
+            f"![{stem}: {KEYS['finishes']}](plots/{pngs[0]})", ""]  # fmt: skip
 
 
 def _deployed(entries: list[DeployedRun]) -> list[str]:
@@ -162,68 +159,3 @@ def _rows(env: str, by: dict[str, CellSummary], orig: dict[str, float] | None) -
            _count(snn.eval_spikes_per_step if snn else None)]  # fmt: skip
     lines = ["| " + " | ".join(row) + " |"]
     return lines
-
-
-def _band(ax: Any, runs: list[RunRecord], key: str, colour: str, label: str) -> None:
-    """Every seed as a thin line, and the median and min-max band over seeds while every seed
-    is still training. A run stopped early (the study's ``stop`` rule: it had learned) ends in
-    a dot; after the first such stop the median of the seeds left would be a median of the
-    slow ones (a cumulative count would seem to fall), so it is not drawn."""
-    field = "returns" if key == "return" else key  # the curve's JSON key is "return"
-    curves = [(np.asarray(r.curve.steps, dtype=float),
-               np.asarray([np.nan if v is None else v for v in getattr(r.curve, field)],
-                          dtype=float))
-              for r in runs]  # fmt: skip
-    full = min(len(x) for x, _ in curves)
-    steps = curves[0][0][:full]
-    ys = np.stack([y[:full] for _, y in curves])
-    with warnings.catch_warnings():  # iterations in which no seed ended an episode: a gap
-        warnings.simplefilter("ignore", RuntimeWarning)
-        median, low, high = (np.nanmedian(ys, axis=0), np.nanmin(ys, axis=0),
-                             np.nanmax(ys, axis=0))  # fmt: skip
-    ax.plot(steps, median, color=colour, lw=2, label=f"{label} (median of {len(runs)})")
-    ax.fill_between(steps, low, high, color=colour, alpha=0.15)
-    for r, (x, y) in zip(runs, curves, strict=True):
-        ax.plot(x, y, color=colour, lw=0.6, alpha=0.45)
-        if r.stopped_early:
-            ax.plot(x[-1:], y[-1:], "o", color=colour, ms=3.5)
-    ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:.0f}k")
-
-
-def _groups(study: StudySettings) -> list[tuple[str, str]]:
-    """(policy, variant) of every band in a panel; an ablation colours them by variant."""
-    return [(p, v) for p in study.policies for v in study.variant_names]
-
-
-def write_plots(record: StudyRecord, out: Path) -> list[Path]:
-    """Per track: cumulative finishes and mean episodic return against steps, one panel per
-    env; PNG and SVG. Returns the files written."""
-    import matplotlib.pyplot as plt
-
-    study, runs, written = record.study, record.runs, []
-    for track in record.tracks():
-        for key, ylabel in (("finishes", "cumulative laps finished"),
-                            ("return", "mean episodic return")):  # fmt: skip
-            envs = [e for e in study.envs if any(r.cell[:2] == (track, e) for r in runs)]
-            fig, axes = _figure(4.2 * len(envs), 3.4, ncols=len(envs))
-            for ax, env in zip(axes[0], envs, strict=True):
-                for k, (policy, variant) in enumerate(_groups(study)):
-                    cell = (track, env, policy, variant)
-                    rs = [r for r in runs if r.cell == cell]
-                    if rs:
-                        colour = COLOURS[policy] if not variant else f"C{k % 10}"
-                        _band(ax, rs, key, colour, f"{policy.upper()} {variant}".strip())
-                if key == "finishes":
-                    ax.axhline(study.finishes, color="grey", lw=0.8, ls=":")
-                    ax.plot([], [], "o", color="grey", ms=3.5, label="stopped: learned")
-                ax.set_title(f"{env} / {Path(track).stem}")
-                ax.set_xlabel("training env steps")
-                ax.set_ylabel(ylabel)
-                ax.legend(loc="upper left", fontsize=8)
-            fig.tight_layout()
-            for suffix in ("png", "svg"):
-                path = out / f"{Path(track).stem}-{key}.{suffix}"
-                fig.savefig(path, format=suffix)
-                written.append(path)
-            plt.close(fig)
-    return written
