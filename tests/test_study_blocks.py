@@ -11,7 +11,7 @@ import pytest
 from snnkart.app.study_summary import ORIGINAL
 from snnkart.errors import ReportError
 from snnkart.report.docs_block import BEGIN, END, replace_block
-from snnkart.report.study_blocks import study_block
+from snnkart.report.study_blocks import every_seed_block, study_block
 from snnkart.report.study_document import track_table
 from snnkart.report.study_record import StudyRecord
 
@@ -58,3 +58,27 @@ def test_a_published_ablation_shows_the_originals_row_once_per_env() -> None:
     assert [r.split(" | ")[0] for r in rows[1:]] == [
         "| env", "| steer · scratch", "| steer · bc", "| *original*"][1:]  # fmt: skip
     assert "better/worse than the original's single run" in block
+
+
+def test_every_seed_cells_by_hand() -> None:
+    """A cell is seeds with a first finish / seeds, the median first finish (None counts as
+    never: "> cap" when the median seed never finished) and the median success, computed
+    here from the runs of the BC study's scratch arm (steer ANN seed 104 never finished)."""
+    import statistics
+
+    record = StudyRecord.read(Path(__file__).parents[1] / "docs/bc/steer.json")
+    with pytest.raises(ReportError, match="an ablation has a row per variant"):
+        every_seed_block([(record, "s.json")], BEGIN, END)
+    scratch = dataclasses.replace(
+        record,
+        study=dataclasses.replace(record.study, variants={}),
+        cells=[c for c in record.cells if c.variant == "scratch"],
+    )
+    block = every_seed_block([(scratch, "s.json")], BEGIN, END)
+    runs = [r for r in record.runs if r.variant == "scratch" and r.policy == "ann"]
+    firsts = [r.first_finish_step for r in runs]
+    reached = sum(f is not None for f in firsts)
+    median = statistics.median([float("inf") if f is None else f for f in firsts])
+    success = statistics.median([r.eval_success_rate for r in runs])
+    expected = f"{reached}/5 · {median / 1000:.0f}k · {100 * success:.0f} %"
+    assert reached == 4 and f"| small_S | {expected} | " in block, block

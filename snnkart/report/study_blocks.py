@@ -60,3 +60,45 @@ def study_block(record: StudyRecord, source: str, begin: str, end: str,
     held = held_out_lines(record)
     lines += held[2:]  # without its heading
     return "\n".join([*lines, end]).replace("\n\n\n", "\n\n")
+
+
+def every_seed_block(records: list[tuple[StudyRecord, str]], begin: str, end: str) -> str:
+    """One table from studies of one protocol (every-seed on small_S, held-out-reporting on
+    zigzag and bends): per track a row, per env and policy kind a cell "seeds that reached a
+    first finish / seeds · median first finish · median evaluation success"."""
+    sources = ", ".join(f"`{source}`" for _, source in records)
+    for record, source in records:
+        if record.study.variants:
+            raise ReportError(f"{source}: an ablation has a row per variant; use study_block")
+    commits = sorted({check_publishable(record, source) for record, source in records})
+    first = records[0][0].study
+    envs = list(dict.fromkeys(e for record, _ in records for e in record.study.envs))
+    kinds = list(dict.fromkeys(p for record, _ in records for p in record.study.policies))
+    columns = [(env, kind) for env in envs for kind in kinds]
+    lines = [
+        begin.format(source=sources.replace("`", "")),
+        "",
+        f"Rendered from {sources} (commit {', '.join(commits)}): {len(first.seeds)} reporting "
+        f"seeds per cell, at most {first.steps:,} env steps, a run stopping once it has "
+        f"{first.finishes} finishes and evaluates >= 80 % at two checks 50k apart; a cell is "
+        "seeds with a first finish / seeds · median first finish · median success over "
+        f"{first.eval_episodes} evaluation episodes (> cap: the median seed never finished).",
+        "",
+        "| track | " + " | ".join(f"{e} {k.upper()}" for e, k in columns) + " |",
+        "|---|" + "---|" * len(columns),
+    ]
+    for record, _ in records:
+        for track in record.tracks():
+            row = []
+            for env, kind in columns:
+                cell = next((c for c in record.cells
+                             if (c.track, c.env, c.policy) == (track, env, kind)), None)  # fmt: skip
+                if cell is None:
+                    row.append("-")
+                    continue
+                f, s = cell.first_finish_step, cell.eval_success_rate
+                median = "> cap" if f.median is None else f"{f.median / 1000:.0f}k"
+                success = "-" if s.median is None else f"{100 * s.median:.0f} %"
+                row.append(f"{f.reached}/{f.of} · {median} · {success}")
+            lines.append(f"| {Path(track).stem} | " + " | ".join(row) + " |")
+    return "\n".join([*lines, "", end])
