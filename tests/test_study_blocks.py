@@ -82,3 +82,22 @@ def test_every_seed_cells_by_hand() -> None:
     success = statistics.median([r.eval_success_rate for r in runs])
     expected = f"{reached}/5 · {median / 1000:.0f}k · {100 * success:.0f} %"
     assert reached == 4 and f"| small_S | {expected} | " in block, block
+
+
+def test_the_main_job_block_is_the_records_numbers() -> None:
+    """Each number of the main-job paragraph is the record's; a dirty record is refused."""
+    import json
+
+    from snnkart.report.main_job_block import main_job_block
+
+    path = Path(__file__).parents[1] / "benchmarks/results/bench_main_job-86c29cb.json"
+    bench = json.loads(path.read_text())
+    block = main_job_block(bench, "b.json", 101, BEGIN, END)
+    for piece in ("commit 86c29cb", "seed 101", "301,056 steps", "first finish at 19,784 steps",
+                  "torch 98 %, fixed point 98 %", "in 0 of 3,510 and 0 of 351 env steps",
+                  "on 98.6 % of actions", "Lava 20/20 (fixed) and 2/2 (float)",
+                  "40 spikes and 603 synaptic operations"):  # fmt: skip
+        assert piece in block, piece
+    bench["machine"]["commit"] += "-dirty"
+    with pytest.raises(ReportError, match="run the benchmark at a clean commit"):
+        main_job_block(bench, "b.json", 101, BEGIN, END)
