@@ -15,7 +15,8 @@ import numpy as np
 
 from snnkart.report.study_record import RunRecord, StudyRecord
 
-COLOURS = {"ann": "#1f77b4", "snn": "#d62728"}
+COLOURS = {"ann": "#1f77b4", "snn": "#d62728", "sdnn": "#2ca02c", "ann-sd": "#9467bd"}
+"""A colour per policy kind (every kind a study may train: StudyConfig.policies)."""
 KEYS = {"finishes": "cumulative laps finished", "return": "mean episodic return"}
 """The figures per track: the curve's key and its axis label."""
 NCOLS = 3

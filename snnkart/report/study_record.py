@@ -45,8 +45,10 @@ class StudySettings:
 
     @property
     def variant_names(self) -> list[str]:
-        """The variants' names; one unnamed variant outside an ablation."""
-        return list(self.variants) or [""]
+        """The variants' names as runs carry them (a ``POLICY:NAME`` variant is ``NAME``), in
+        order, once each; one unnamed variant outside an ablation."""
+        names = [name.rpartition(":")[2] for name in self.variants]
+        return list(dict.fromkeys(names)) or [""]
 
 
 @dataclass(frozen=True)
