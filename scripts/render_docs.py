@@ -33,6 +33,7 @@ FIGURE = "docs/frontier/frontier.png"
 STUDIES = {  # a page's block per study.json: (page, source)
     ("docs/training.md", "docs/bc/steer.json"),
     ("docs/training.md", "docs/bc/gazebo.json"),
+    ("docs/tracks.md", "docs/generalisation/study.json"),
 }
 
 
