@@ -42,9 +42,10 @@ def held_out_lines(record: StudyRecord) -> list[str]:
     lines = [
         "## Held-out tracks",
         "",
-        f"Success on tracks the policy did not train on: {study.eval_track_episodes} seeded "
-        "episodes per track on each run's evaluation backend; a folder's column is each run's "
-        'mean over its tracks. "own track" is the run\'s evaluation on its training track '
+        f"Success on the study's evaluation tracks: {study.eval_track_episodes} seeded "
+        "episodes per track on each run's evaluation backend (a run trained on one of them "
+        "meets its own track there); a folder's column is each run's mean over its tracks. "
+        '"own track" is the run\'s evaluation on its training track '
         f"({study.eval_episodes} episodes; for `random`, tracks drawn from the evaluation "
         "seeds, never a reporting track). Medians over seeds with (min–max). † marks a tuning "
         "track (docs/results.md).",
