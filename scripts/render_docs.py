@@ -23,6 +23,7 @@ from snnkart.app.study_summary import ORIGINAL
 from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
 from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
 from snnkart.report.study_blocks import study_block
+from snnkart.report.study_plots import figure as study_figure
 from snnkart.report.study_record import StudyRecord
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,7 +35,11 @@ STUDIES = {  # a page's block per study.json: (page, source)
     ("docs/training.md", "docs/bc/steer.json"),
     ("docs/training.md", "docs/bc/gazebo.json"),
     ("docs/tracks.md", "docs/generalisation/study.json"),
+    ("docs/results.md", "docs/results/small_S.json"),
+    ("README.md", "docs/results/small_S.json"),
 }
+STUDY_FIGURES = {"docs/results/small_S-finishes.png": ("docs/results/small_S.json", "finishes")}
+"""Figures drawn from a published study's record: file -> (record, curve key)."""
 
 
 def rendered(page: str, source: str) -> str:
@@ -49,7 +54,7 @@ def rendered(page: str, source: str) -> str:
         block = render(summary, source, BEGIN, END)
     else:
         block = energy_block(json.loads((ROOT / source).read_text()), source)
-    return replace_block((ROOT / page).read_text(), block)
+    return replace_block((ROOT / page).read_text(), block, source)
 
 
 def blocks() -> list[tuple[str, str]]:
@@ -64,6 +69,11 @@ def main() -> None:
     summary = frontier(StudyRecord.read(ROOT / FRONTIER))
     (ROOT / FIGURE).write_bytes(frontier_figure(summary))
     print(f"{FIGURE}: drawn from {FRONTIER}")
+    for path, (source, key) in STUDY_FIGURES.items():
+        record = StudyRecord.read(ROOT / source)
+        fig = study_figure(record, record.study.tracks[0], key)
+        fig.savefig(ROOT / path)
+        print(f"{path}: drawn from {source}")
 
 
 if __name__ == "__main__":

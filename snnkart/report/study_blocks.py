@@ -9,7 +9,7 @@ from pathlib import Path
 
 from snnkart.errors import ReportError
 from snnkart.report.held_out import held_out_lines
-from snnkart.report.study_document import track_table
+from snnkart.report.study_document import deployed_lines, track_table
 from snnkart.report.study_record import StudyRecord
 
 
@@ -57,6 +57,7 @@ def study_block(record: StudyRecord, source: str, begin: str, end: str,
         if len(study.tracks) > 1 or study.eval_tracks:
             lines += [f"Trained on {Path(track).stem}:", ""]
         lines += [*track_table(record, track, original), ""]
+        lines += deployed_lines([d for d in record.deployed if d.track == track])
     held = held_out_lines(record)
     lines += held[2:]  # without its heading
     return "\n".join([*lines, end]).replace("\n\n\n", "\n\n")

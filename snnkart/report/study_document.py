@@ -67,7 +67,7 @@ def markdown(record: StudyRecord, original: dict[str, dict[str, float]]) -> str:
         lines += [f"A piece of the study: the cells matching `{' '.join(record.only)}`.", ""]
     for track in record.tracks():
         lines += [f"## {Path(track).stem}", "", *track_table(record, track, original), ""]
-        lines += _deployed([d for d in record.deployed if d.track == track])
+        lines += deployed_lines([d for d in record.deployed if d.track == track])
         lines += _figures(record, track)
     lines += held_out_lines(record)
     w = record.wall_clock
@@ -118,7 +118,7 @@ def _figures(record: StudyRecord, track: str) -> list[str]:
             f"![{stem}: {KEYS['finishes']}](plots/{pngs[0]})", ""]  # fmt: skip
 
 
-def _deployed(entries: list[DeployedRun]) -> list[str]:
+def deployed_lines(entries: list[DeployedRun]) -> list[str]:
     """The median-seed SNNs on lava-sim beside their reference evaluation."""
     if not entries:
         return []
