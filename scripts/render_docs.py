@@ -37,8 +37,12 @@ STUDIES = {  # a page's block per study.json: (page, source)
     ("docs/tracks.md", "docs/generalisation/study.json"),
     ("docs/results.md", "docs/results/small_S.json"),
     ("README.md", "docs/results/small_S.json"),
+    ("docs/results.md", "docs/results/big_S.json"),
 }
-STUDY_FIGURES = {"docs/results/small_S-finishes.png": ("docs/results/small_S.json", "finishes")}
+STUDY_FIGURES = {
+    "docs/results/small_S-finishes.png": ("docs/results/small_S.json", "finishes"),
+    "docs/results/big_S-finishes.png": ("docs/results/big_S.json", "finishes"),
+}
 """Figures drawn from a published study's record: file -> (record, curve key)."""
 
 
