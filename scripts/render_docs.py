@@ -19,9 +19,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from snnkart.app.pipeline import DEMO_SEED
 from snnkart.app.study_summary import ORIGINAL
 from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
 from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
+from snnkart.report.main_job_block import main_job_block
 from snnkart.report.study_blocks import study_block
 from snnkart.report.study_plots import figure as study_figure
 from snnkart.report.study_record import StudyRecord
@@ -39,6 +41,8 @@ STUDIES = {  # a page's block per study.json: (page, source)
     ("README.md", "docs/results/small_S.json"),
     ("docs/results.md", "docs/results/big_S.json"),
 }
+MAIN_JOB = ("docs/deployment.md", "benchmarks/results/bench_main_job-8c4f9a5.json")
+"""The page quoting the main job, and the record of ``python -m benchmarks.bench_main_job``."""
 STUDY_FIGURES = {
     "docs/results/small_S-finishes.png": ("docs/results/small_S.json", "finishes"),
     "docs/results/big_S-finishes.png": ("docs/results/big_S.json", "finishes"),
@@ -48,6 +52,10 @@ STUDY_FIGURES = {
 
 def rendered(page: str, source: str) -> str:
     """The page's text with its generated block rendered from ``source``."""
+    if (page, source) == MAIN_JOB:
+        bench = json.loads((ROOT / source).read_text())
+        block = main_job_block(bench, source, DEMO_SEED, BEGIN, END)
+        return replace_block((ROOT / page).read_text(), block, source)
     if (page, source) in STUDIES:
         record = StudyRecord.read(ROOT / source)
         block = study_block(record, source, BEGIN, END, ORIGINAL)
@@ -63,7 +71,7 @@ def rendered(page: str, source: str) -> str:
 
 def blocks() -> list[tuple[str, str]]:
     """Every (page, source) pair with a generated block."""
-    return [*PAGES.items(), *sorted(STUDIES)]
+    return [*PAGES.items(), *sorted(STUDIES), MAIN_JOB]
 
 
 def main() -> None:

@@ -90,13 +90,13 @@ def test_the_main_job_block_is_the_records_numbers() -> None:
 
     from snnkart.report.main_job_block import main_job_block
 
-    path = Path(__file__).parents[1] / "benchmarks/results/bench_main_job-86c29cb.json"
+    path = Path(__file__).parents[1] / "benchmarks/results/bench_main_job-8c4f9a5.json"
     bench = json.loads(path.read_text())
     block = main_job_block(bench, "b.json", 101, BEGIN, END)
-    for piece in ("commit 86c29cb", "seed 101", "301,056 steps", "first finish at 19,784 steps",
-                  "torch 98 %, fixed point 98 %", "in 0 of 3,510 and 0 of 351 env steps",
-                  "on 98.6 % of actions", "Lava 20/20 (fixed) and 2/2 (float)",
-                  "40 spikes and 603 synaptic operations"):  # fmt: skip
+    for piece in ("commit 8c4f9a5", "seed 101", "301,056 steps", "first finish at 40,392 steps",
+                  "torch 98 %, fixed point 98 %", "in 0 of 3,513 and 0 of 344 env steps",
+                  "on 99.7 % of actions", "Lava 20/20 (fixed) and 2/2 (float)",
+                  "34 spikes and 421 synaptic operations"):  # fmt: skip
         assert piece in block, piece
     bench["machine"]["commit"] += "-dirty"
     with pytest.raises(ReportError, match="run the benchmark at a clean commit"):
