@@ -81,13 +81,13 @@ def documents(root: Path = ROOT) -> list[Path]:
     return [p for p in found if p.is_file()]
 
 
-def _expand(pattern: str) -> list[str]:
+def expand(pattern: str) -> list[str]:
     """``a-{x,y}-b`` as ``a-x-b`` and ``a-y-b``."""
     match = re.search(r"\{([^{}]*)\}", pattern)
     if match is None:
         return [pattern]
     head, tail = pattern[: match.start()], pattern[match.end() :]
-    return [n for part in match.group(1).split(",") for n in _expand(head + part + tail)]
+    return [n for part in match.group(1).split(",") for n in expand(head + part + tail)]
 
 
 def _stem(name: str) -> str:
@@ -115,7 +115,7 @@ def citations(text: str, names: list[str]) -> set[str]:
         last: list[str] = []
         for match in re.finditer(f"{CITED_NAME.pattern}|{SUFFIX.pattern}", paragraph):
             if match.group(1) is None:
-                found = [n for p in _expand(match.group(0)) for n in _matches(p, names)]
+                found = [n for p in expand(match.group(0)) for n in _matches(p, names)]
                 cited.update(found)
                 last = found or last
                 continue

@@ -9,6 +9,7 @@ A tag is named as ``tag `NAME``` (or ``tags `A` and `B```); a result is named by
 
 from __future__ import annotations
 
+import functools
 import re
 import subprocess
 from collections.abc import Iterator
@@ -92,12 +93,16 @@ def link_problems(page: Path) -> Iterator[str]:
 
 
 def expand(pattern: str) -> list[str]:
-    """A ``{a,b}`` pattern as its alternatives (one level, any number of groups)."""
-    match = re.search(r"\{([^{}]*)\}", pattern)
-    if match is None:
-        return [pattern]
-    head, tail = pattern[: match.start()], pattern[match.end() :]
-    return [p for part in match.group(1).split(",") for p in expand(head + part + tail)]
+    """A ``{a,b}`` pattern as its alternatives: the catalogue script's own reading
+    (``scripts/results_index.py``), so the two agree on what a document cites."""
+    return _script().expand(pattern)  # type: ignore[no-any-return]
+
+
+@functools.cache
+def _script():  # type: ignore[no-untyped-def]
+    from test_results_catalogue import _index_script
+
+    return _index_script()
 
 
 def result_exists(name: str) -> bool:

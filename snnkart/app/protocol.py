@@ -16,11 +16,10 @@ training data of either kind: it never draws a reporting track.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Literal
 
 from snnkart.envs.trackgen import reporting_track_names
-from snnkart.envs.tracks import RANDOM_TRACK
+from snnkart.envs.tracks import RANDOM_TRACK, short_name
 
 DataKind = Literal["tuning", "reporting"]
 """What a study's runs are for: choosing defaults, or the published numbers."""
@@ -40,11 +39,6 @@ seed list ``snnkart.envs.trackgen.REPORTING_SEEDS`` (``benchmarks/tracks/generat
 ``track="random"`` never draws."""
 
 
-def track_name(track: str) -> str:
-    """A built-in track's name, or a track file's stem."""
-    return Path(track).stem if track.endswith(".toml") else track
-
-
 def data_problem(kind: DataKind, seeds: list[int], tracks: list[str]) -> str | None:
     """What in ``seeds`` and ``tracks`` is not ``kind`` data, in one line; None when all is
     (``random`` and, in a reporting study, the :data:`TASK_TRACKS` are allowed: see above)."""
@@ -57,7 +51,7 @@ def data_problem(kind: DataKind, seeds: list[int], tracks: list[str]) -> str | N
         seed_rule = f"{FIRST_REPORTING_SEED} and up"
     if seed is not None:
         return f"seed {seed} is not {kind} data ({kind} studies use seeds {seed_rule})"
-    track = next((t for t in tracks if track_name(t) not in allowed), None)
+    track = next((t for t in tracks if short_name(t) not in allowed), None)
     if track is not None:
         return (
             f"track {track!r} is not {kind} data ({kind} studies use the tracks "
@@ -68,7 +62,7 @@ def data_problem(kind: DataKind, seeds: list[int], tracks: list[str]) -> str | N
 
 def is_tuning_track(track: str) -> bool:
     """Whether results on ``track`` are marked as on a tuning track."""
-    return track_name(track) in TUNING_TRACKS
+    return short_name(track) in TUNING_TRACKS
 
 
 def _short(tracks: tuple[str, ...]) -> list[str]:

@@ -11,11 +11,12 @@ from typing import TYPE_CHECKING, Any
 from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.protocol import is_tuning_track
 from snnkart.app.reporter import Reporter
-from snnkart.app.study_types import held_out_tracks, track_stem
-from snnkart.app.worker import EvalJob, WorkerRequest
+from snnkart.app.study_types import held_out_tracks
+from snnkart.app.worker import EvalJob, WorkerRequest, track_out
 from snnkart.contract.deploy_record import DeployRecord, StepCounts
 from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.envs.tracks import short_name
 from snnkart.errors import UsageError
 from snnkart.report.study_record import DeployedRun, HeldOut, RunRecord
 
@@ -107,8 +108,7 @@ def _held_out_job(run: Run, runs_dir: Path, study: StudyConfig,
     job = EvalJob(str(out.parent), study.eval_track_episodes, study.eval_seed, str(out),
                   "nir-ref" if nir else "torch", sigma_delta=converted(run),
                   tracks=tracks)  # fmt: skip
-    files = [out / (f"{track_stem(t)}/deploy.json" if nir else f"{track_stem(t)}.json")
-             for t in tracks]  # fmt: skip
+    files = [track_out(out, t, job.backend) / ("deploy.json" if nir else "") for t in tracks]
     return job, files
 
 
@@ -132,7 +132,7 @@ def evaluate_held_out(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs:
     for run in runs:
         files = _held_out_job(run, runs_dir, study, tracks)[1]
         out[run.spec.name] = [
-            _held_out(track_stem(t), group, _summary(f).summary)
+            _held_out(short_name(t), group, _summary(f).summary)
             for (group, t), f in zip(pairs, files, strict=True)
         ]
     return out

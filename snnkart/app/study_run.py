@@ -43,10 +43,9 @@ from snnkart.app.study_types import (
     Run,
     StudyConfig,
     held_out_tracks,
-    track_stem,
 )
 from snnkart.envs.spec import ENV_REVISION
-from snnkart.envs.tracks import load_track
+from snnkart.envs.tracks import load_track, short_name
 from snnkart.errors import TrackError, UsageError
 from snnkart.io import write_text
 from snnkart.report.study_record import (
@@ -114,7 +113,7 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     """Every run of the study, in a fixed order (cell by cell, seeds inside); with ``only``,
     the runs of the cells whose ``track/env-policy`` matches one of these glob patterns."""
     known = {f"{e}-{p}" for e in study.envs for p in study.policies}
-    known |= {f"{track_stem(t)}/{c}" for t in study.tracks for c in list(known)}
+    known |= {f"{short_name(t)}/{c}" for t in study.tracks for c in list(known)}
     for cell in study.cells:
         if cell not in known:
             raise UsageError(
@@ -124,7 +123,7 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     runs = []
     for track, env, policy in itertools.product(study.tracks, study.envs, study.policies):
         cell_sets = [*study.cells.get(f"{env}-{policy}", []),
-                     *study.cells.get(f"{track_stem(track)}/{env}-{policy}", [])]  # fmt: skip
+                     *study.cells.get(f"{short_name(track)}/{env}-{policy}", [])]  # fmt: skip
         for (variant, variant_sets), seed in itertools.product(_of(variants, policy), study.seeds):
             config = load_config(
                 overrides={"env": env, "policy": TRAINED_AS.get(policy, policy),
@@ -132,7 +131,7 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
                 sets=["run.tensorboard=false", *KIND_SETS.get(policy, []), *study.sets,
                       *cell_sets, *variant_sets],
             )  # fmt: skip
-            name = "-".join([track_stem(track), env, policy, *([variant] if variant else []),
+            name = "-".join([short_name(track), env, policy, *([variant] if variant else []),
                              f"s{seed}"])  # fmt: skip
             problem = data_problem(study.data, [config.seed], [config.track])
             if problem:  # a setting may change a run's seed or track

@@ -12,6 +12,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from snnkart.app.launch import RunSpec
 from snnkart.app.protocol import DataKind
+from snnkart.envs.tracks import short_name
 from snnkart.errors import UsageError
 
 STUDY_SCHEMA = "snnkart/study-config/v1"
@@ -81,17 +82,12 @@ class Run:
 
     @property
     def cell_label(self) -> str:
-        return f"{track_stem(self.track)}/{self.env}-{self.policy}"
+        return f"{short_name(self.track)}/{self.env}-{self.policy}"
 
     @property
     def label(self) -> str:
         """``TRACK/ENV-POLICY`` (``:VARIANT`` in an ablation), what ``--only`` matches."""
         return f"{self.cell_label}:{self.variant}" if self.variant else self.cell_label
-
-
-def track_stem(track: str) -> str:
-    """A study track's short name in cell and run labels: a built-in's name, a file's stem."""
-    return Path(track).stem if track.endswith(".toml") else track
 
 
 def held_out_tracks(groups: list[str]) -> list[tuple[str, str]]:

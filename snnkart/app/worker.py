@@ -23,6 +23,7 @@ from pathlib import Path
 
 from snnkart import faults
 from snnkart.app.reporter import Silent
+from snnkart.envs.tracks import short_name
 from snnkart.errors import ParityError, SnnkartError, UsageError
 
 
@@ -102,10 +103,15 @@ def run(request: WorkerRequest) -> int:
     if not request.tracks:
         _evaluate(request, run_dir, out, None, reporter)
     for track in request.tracks:
-        stem = Path(track).stem if track.endswith(".toml") else track
-        where = out / (f"{stem}.json" if request.backend == "torch" else stem)
-        _evaluate(request, run_dir, where, track, reporter)
+        _evaluate(request, run_dir, track_out(out, track, request.backend), track, reporter)
     return 0
+
+
+def track_out(out: Path, track: str, backend: str) -> Path:
+    """Where a request with ``tracks`` writes ``track``'s evaluation: ``out/<name>.json`` in
+    torch, the directory ``out/<name>/`` (holding ``deploy.json``) on a NIR backend."""
+    name = short_name(track)
+    return out / (f"{name}.json" if backend == "torch" else name)
 
 
 def _evaluate(request: EvalJob, run_dir: Path, out: Path, track: str | None,

@@ -161,6 +161,12 @@ def load_track(track: str | Path | Track) -> Track:
     return parse_track(text, source=str(path))
 
 
+def short_name(track: str) -> str:
+    """A track as studies and results name it: a built-in's (or ``random``'s) name, a track
+    file's stem (``benchmarks/tracks/ring.toml`` is ``ring``)."""
+    return Path(track).stem if track.endswith(".toml") else track
+
+
 def track_sha256(track: Track) -> str:
     """The content hash of a track's geometry (of its canonical TOML text)."""
     return hashlib.sha256(track.to_toml().encode()).hexdigest()

@@ -7,6 +7,7 @@ from __future__ import annotations
 import statistics
 from pathlib import Path
 
+from snnkart.envs.tracks import short_name
 from snnkart.report.study_record import HeldOut, RunRecord, StudyRecord
 
 
@@ -57,9 +58,10 @@ def held_out_lines(record: StudyRecord) -> list[str]:
     for r in runs:
         cells.setdefault(r.cell, []).append(r)
     for (track, env, policy, variant), rs in cells.items():
-        trained = Path(track).stem if track.endswith(".toml") else track
         kind = f"{policy} · {variant}" if variant else policy
         own = _spread([r.eval_success_rate for r in rs])
         columns = [_spread([run_success(r, g) for r in rs]) for g in groups]
-        lines.append(f"| {trained} | {env} | {kind} | {own} | " + " | ".join(columns) + " |")
+        lines.append(
+            f"| {short_name(track)} | {env} | {kind} | {own} | " + " | ".join(columns) + " |"
+        )
     return [*lines, ""]
