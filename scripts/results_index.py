@@ -33,6 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import tomli as tomllib
+
 from snnkart.app.pipeline import DEMO_SEED, DEMO_TRACK
 from snnkart.app.protocol import FIRST_REPORTING_SEED, data_problem, is_tuning_track
 
@@ -188,7 +190,8 @@ def _demo_seed(record: dict[str, Any]) -> int:
     """The main job's training seed: DEMO_SEED (101) from tag results-1 on; 1 before it (those
     records name no seed)."""
     commit = str((record.get("machine") or {}).get("commit", "")).removesuffix("-dirty")
-    since = subprocess.run(["git", "merge-base", "--is-ancestor", "results-1", commit],
+    tag = tomllib.loads((ROOT / "docs/tags.toml").read_text())["results-1"]  # a clone may lack tags
+    since = subprocess.run(["git", "merge-base", "--is-ancestor", tag, commit],
                            cwd=ROOT, capture_output=True).returncode == 0  # fmt: skip
     return DEMO_SEED if since else 1
 

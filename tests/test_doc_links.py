@@ -16,6 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+import tomli as tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks/results"
@@ -127,11 +128,17 @@ def tag_names(text: str) -> Iterator[str]:
         yield from re.findall(r"`([^`]+)`", match.group(1) or match.group(2))
 
 
-def git_tags() -> set[str]:
-    """The repository's tags."""
-    out = subprocess.run(["git", "-C", str(ROOT), "tag", "--list"], capture_output=True,
+def git_tags() -> dict[str, str]:
+    """The tags git lists, with their commits (a clone without tags lists none)."""
+    fmt = "--format=%(refname:short) %(objectname)%(*objectname)"  # an annotated tag's commit last
+    out = subprocess.run(["git", "-C", str(ROOT), "tag", "--list", fmt], capture_output=True,
                          text=True, check=True)  # fmt: skip
-    return set(out.stdout.split())
+    return {name: ref[-40:] for name, ref in (line.split() for line in out.stdout.splitlines())}
+
+
+def published_tags() -> dict[str, str]:
+    """docs/tags.toml: the tags results are published at, with their commits."""
+    return {k: str(v) for k, v in tomllib.loads((ROOT / "docs/tags.toml").read_text()).items()}
 
 
 def test_the_readme_is_short() -> None:
@@ -156,14 +163,16 @@ def test_every_cited_result_exists(page: Path) -> None:
 
 
 def test_every_named_tag_exists() -> None:
-    tags = git_tags()
+    published = published_tags()
     missing = [
         f"{page.relative_to(ROOT)}: tag `{tag}`"
         for page in documents()
         for tag in tag_names(page.read_text())
-        if tag not in tags
+        if tag not in published
     ]
-    assert not missing, f"tags that `git tag` does not list: {missing}"
+    assert not missing, f"tags that docs/tags.toml does not list: {missing}"
+    moved = {t: c for t, c in git_tags().items() if t in published and published[t] != c}
+    assert not moved, f"tags git points elsewhere than docs/tags.toml says: {moved}"
 
 
 def test_the_checks_see_what_they_check() -> None:

@@ -108,9 +108,9 @@ def test_the_first_screen_answers_first_then_the_term_in_the_way(deployed: Path)
 
 
 def test_an_old_report_json_is_refused_with_the_fix_and_v2_still_renders(deployed: Path) -> None:
-    old = json.loads((ROOT / "docs/energy/report.json").read_text())
+    old = json.loads((DATA / "report-v2.json").read_text())
     assert old["schema"] == "snnkart/report/v2"
-    assert "Deployment: `" in energy_block(old, "docs/energy/report.json")
+    assert "Deployment: `" in energy_block(old, "report-v2.json")
     with pytest.raises(ReportError, match=r"written by an older snnkart; run `snnkart report"):
         energy_block({**old, "schema": "snnkart/report/v1"}, "old/report.json")
     sd = json.loads((deployed / "report.json").read_text())
