@@ -11,7 +11,7 @@ import pytest
 from snnkart.app.study_summary import ORIGINAL
 from snnkart.errors import ReportError
 from snnkart.report.docs_block import BEGIN, END, replace_block
-from snnkart.report.study_blocks import every_seed_block, study_block
+from snnkart.report.study_blocks import cells_block, every_seed_block, study_block
 from snnkart.report.study_document import track_table
 from snnkart.report.study_record import StudyRecord
 
@@ -82,6 +82,35 @@ def test_every_seed_cells_by_hand() -> None:
     success = statistics.median([r.eval_success_rate for r in runs])
     expected = f"{reached}/5 · {median / 1000:.0f}k · {100 * success:.0f} %"
     assert reached == 4 and f"| small_S | {expected} | " in block, block
+
+
+def test_chosen_cells_by_hand_and_their_settings() -> None:
+    """A row per chosen cell with its variant's settings; its median first finish and steps to
+    the mark computed here from the runs; a study column only when the rows span records; a
+    tuning record refused."""
+    import statistics
+
+    path = Path(__file__).parents[1] / "docs/bc/steer.json"
+    record = StudyRecord.read(path)
+    rows = [(record, "s.json", c) for c in record.cells if c.policy == "snn"]
+    block = cells_block(rows, BEGIN, END, "Intro.")
+    runs = [r for r in record.runs if r.variant == "bc" and r.policy == "snn"]
+    first = statistics.median(r.first_finish_step for r in runs)
+    mark = statistics.median(r.steps_to_finishes for r in runs)
+    row = next(line for line in block.splitlines() if line.startswith("| steer · SNN · bc"))
+    assert "(`bc.data=benchmarks/bc-data/steer-small_S-pursuit.npz`, `bc.epochs=20`)" in row
+    cols = row.split(" | ")
+    assert cols[2].startswith(f"{first / 1000:.0f}k (") and cols[3].startswith(
+        f"{mark / 1000:.0f}k ("
+    ), row
+    assert "| cell | seeds | first finish | 300 finishes |" in block
+    assert "| study |" not in block and sum(line.startswith("| steer") for line in
+                                           block.splitlines()) == 2  # fmt: skip
+    two = cells_block([*rows, (record, "t.json", rows[0][2])], BEGIN, END, "Intro.")
+    assert "| study | cell |" in two and "`s.json` (commit" in two and "`t.json` (commit" in two
+    with pytest.raises(ReportError, match="tuning data cannot fill a published table"):
+        tuning = StudyRecord.read(RECORD)
+        cells_block([(tuning, "x.json", tuning.cells[0])], BEGIN, END, "Intro.")
 
 
 def test_the_main_job_block_is_the_records_numbers() -> None:

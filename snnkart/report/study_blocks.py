@@ -9,8 +9,14 @@ from pathlib import Path
 
 from snnkart.errors import ReportError
 from snnkart.report.held_out import held_out_lines
-from snnkart.report.study_document import deployed_lines, track_table
-from snnkart.report.study_record import StudyRecord
+from snnkart.report.study_document import (
+    deployed_lines,
+    spread_count,
+    spread_pct,
+    spread_steps,
+    track_table,
+)
+from snnkart.report.study_record import CellSummary, StudyRecord
 
 
 def check_publishable(record: StudyRecord, source: str) -> str:
@@ -103,3 +109,45 @@ def every_seed_block(records: list[tuple[StudyRecord, str]], begin: str, end: st
                 row.append(f"{f.reached}/{f.of} · {median} · {success}")
             lines.append(f"| {Path(track).stem} | " + " | ".join(row) + " |")
     return "\n".join([*lines, "", end])
+
+
+def cells_block(rows: list[tuple[StudyRecord, str, CellSummary]], begin: str, end: str,
+                intro: str) -> str:  # fmt: skip
+    """Chosen cells of one or more reporting studies, a row each (an ablation's variants, or one
+    env and policy kind across studies): first finish, steps to the study's finishes mark,
+    evaluation success, spikes and synaptic operations per env step, medians (min–max)."""
+    sources = list(dict.fromkeys(source for _, source, _ in rows))
+    commits = {source: check_publishable(record, source) for record, source, _ in rows}
+    marks = {record.study.finishes for record, _, _ in rows}
+    mark = f"{marks.pop()} finishes" if len(marks) == 1 else "the finishes mark"
+    several = len(sources) > 1
+    lines = [
+        begin.format(source=", ".join(sources)),
+        "",
+        f"{intro} Rendered from "
+        + ", ".join(f"`{s}` (commit {commits[s]})" for s in sources)
+        + "; medians over seeds with (min–max).",
+        "",
+        ("| study " if several else "")
+        + f"| cell | seeds | first finish | {mark} | eval | spikes/step | synops/step |",
+        ("|---" if several else "") + "|---|---|---|---|---|---|---|",
+    ]
+    for record, _, c in rows:
+        study = record.study
+        lines.append(
+            (f"| {study.name} " if several else "")
+            + f"| {_cell_name(record, c)} | {len(c.seeds)} ({c.seeds[0]}–{c.seeds[-1]}) | "
+            f"{spread_steps(c.first_finish_step)} | {spread_steps(c.steps_to_finishes)}"
+            + ("" if len(marks) == 0 else f" ({study.finishes})" if several else "")
+            + f" | {spread_pct(c.eval_success_rate)} | {spread_count(c.eval_spikes_per_step)} "
+            f"| {spread_count(c.eval_synops_per_step)} |"
+        )
+    return "\n".join([*lines, "", end])
+
+
+def _cell_name(record: StudyRecord, c: CellSummary) -> str:
+    """env · POLICY · variant, with the variant's settings (``base``: none)."""
+    sets = next((v for k, v in record.study.variants.items()
+                 if k.rpartition(":")[2] == c.variant), [])  # fmt: skip
+    name = " · ".join(x for x in (c.env, c.policy.upper(), c.variant) if x)
+    return name + (f" (`{'`, `'.join(sets)}`)" if sets else "")

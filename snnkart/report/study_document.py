@@ -14,7 +14,7 @@ def _k(steps: float | None) -> str:
     return ">cap" if steps is None else f"{steps / 1000:.0f}k"
 
 
-def _steps(s: Spread) -> str:
+def spread_steps(s: Spread) -> str:
     if s.of == 1 or s.reached == 0:
         text = _k(s.median)
     else:
@@ -22,14 +22,14 @@ def _steps(s: Spread) -> str:
     return text if s.reached == s.of else f"{text}, {s.reached}/{s.of} seeds"
 
 
-def _pct(s: Spread) -> str:
+def spread_pct(s: Spread) -> str:
     def p(v: float | None) -> str:
         return "-" if v is None else f"{100 * v:.0f} %"
 
     return f"{p(s.median)} ({p(s.min)}–{p(s.max)})" if s.of > 1 else p(s.median)
 
 
-def _count(s: Spread | None) -> str:
+def spread_count(s: Spread | None) -> str:
     if s is None or s.median is None:
         return "-"
     if s.of == 1:
@@ -144,7 +144,7 @@ def _rows(env: str, by: dict[str, CellSummary], orig: dict[str, float] | None) -
             return "-"
         s: Spread = getattr(c, key)
         mark = _vs(s.median, orig[orig_key]) if orig else ""
-        return _steps(s) + mark
+        return spread_steps(s) + mark
 
     snn = by.get("snn")
     pct = snn.snn_pct_of_ann if snn else None
@@ -154,8 +154,8 @@ def _rows(env: str, by: dict[str, CellSummary], orig: dict[str, float] | None) -
     row = [env, cell("ann", "first_finish_step", "ann_first"),
            cell("snn", "first_finish_step", "snn_first"),
            cell("ann", "steps_to_finishes", "ann_300"), cell("snn", "steps_to_finishes", "snn_300"),
-           pct_text, _pct(by["ann"].eval_success_rate) if "ann" in by else "-",
-           _pct(by["snn"].eval_success_rate) if "snn" in by else "-",
-           _count(snn.eval_spikes_per_step if snn else None)]  # fmt: skip
+           pct_text, spread_pct(by["ann"].eval_success_rate) if "ann" in by else "-",
+           spread_pct(by["snn"].eval_success_rate) if "snn" in by else "-",
+           spread_count(snn.eval_spikes_per_step if snn else None)]  # fmt: skip
     lines = ["| " + " | ".join(row) + " |"]
     return lines
