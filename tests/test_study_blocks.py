@@ -11,7 +11,12 @@ import pytest
 from snnkart.app.study_summary import ORIGINAL
 from snnkart.errors import ReportError
 from snnkart.report.docs_block import BEGIN, END, replace_block
-from snnkart.report.study_blocks import cells_block, every_seed_block, study_block
+from snnkart.report.study_blocks import (
+    cells_block,
+    every_seed_block,
+    regenerate_block,
+    study_block,
+)
 from snnkart.report.study_document import track_table
 from snnkart.report.study_record import StudyRecord
 
@@ -111,6 +116,27 @@ def test_chosen_cells_by_hand_and_their_settings() -> None:
     with pytest.raises(ReportError, match="tuning data cannot fill a published table"):
         tuning = StudyRecord.read(RECORD)
         cells_block([(tuning, "x.json", tuning.cells[0])], BEGIN, END, "Intro.")
+
+
+def test_the_regeneration_table_sums_every_wall_clock() -> None:
+    """A row per study with its command and wall-clock, the main job's row, and a total that
+    is their sum (computed here from the records)."""
+    import json
+
+    docs = Path(__file__).parents[1] / "docs"
+    studies = [(StudyRecord.read(docs / f"bc/{e}.json"), f"docs/bc/{e}.json",
+                f"studies/bc-{e}.toml") for e in ("steer", "gazebo")]  # fmt: skip
+    bench_path = next((docs.parent / "benchmarks/results").glob("bench_main_job-*.json"))
+    bench = json.loads(bench_path.read_text())
+    block = regenerate_block(studies, (bench, bench_path.name), BEGIN, END)
+    total = sum(r.wall_clock.train_seconds + r.wall_clock.eval_seconds for r, _, _ in studies)
+    total += bench["wall_s"]
+    assert f"In all {total / 3600:.1f} hours" in block, block
+    row = next(line for line in block.splitlines() if line.startswith("| `docs/bc/steer.json`"))
+    w = studies[0][0].wall_clock
+    assert "`snnkart study studies/bc-steer.toml --out runs/bc-steer --jobs 2`" in row
+    assert f"| {w.runs} | {w.train_seconds / 60:.1f} min | {w.eval_seconds / 60:.1f} min |" in row
+    assert f"| {bench['wall_s'] / 60:.1f} min (training" in block
 
 
 def test_the_main_job_block_is_the_records_numbers() -> None:

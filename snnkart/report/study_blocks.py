@@ -151,3 +151,48 @@ def _cell_name(record: StudyRecord, c: CellSummary) -> str:
                  if k.rpartition(":")[2] == c.variant), [])  # fmt: skip
     name = " · ".join(x for x in (c.env, c.policy.upper(), c.variant) if x)
     return name + (f" (`{'`, `'.join(sets)}`)" if sets else "")
+
+
+def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
+                     main_job: tuple[dict[str, object], str], begin: str, end: str) -> str:  # fmt: skip
+    """How each published result is made again and what it cost on the machine that made it:
+    per study its config, command, runs (reused ones trained by an earlier, identical study),
+    training and evaluation wall-clock, and the runs' own training time summed; the main job's
+    wall-clock; the total."""
+    bench, bench_source = main_job
+    sources = [source for _, source, _ in studies] + [bench_source]
+    lines = [
+        begin.format(source=", ".join(sources)),
+        "",
+        "| result | command | commit | runs | training | evaluation | runs' training, summed |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    total = 0.0
+    for record, source, config in studies:
+        commit, w = check_publishable(record, source), record.wall_clock
+        summed = sum(r.train_seconds for r in record.runs) / 60
+        reused = f" ({w.runs_reused} reused)" if w.runs_reused else ""
+        total += w.train_seconds + w.eval_seconds
+        out = Path(config).stem
+        lines.append(
+            f"| `{source}` | `snnkart study {config} --out runs/{out} --jobs 2` | {commit} | "
+            f"{w.runs}{reused} | {w.train_seconds / 60:.1f} min | {w.eval_seconds / 60:.1f} min "
+            f"| {summed:.0f} min |"
+        )
+    machine = bench.get("machine")
+    commit = str(machine.get("commit") if isinstance(machine, dict) else "unknown")
+    wall = float(bench["wall_s"])  # type: ignore[arg-type]
+    total += wall
+    lines += [
+        f"| `{bench_source}` | `python -m benchmarks.bench_main_job` | {commit} | 1 | "
+        f"{wall / 60:.1f} min (training, deployment and report) | | |",
+        "",
+        f"In all {total / 3600:.1f} hours of wall-clock on "
+        f"{(studies[0][0].machine or {}).get('cores', '?')} cores, one study at a time (two runs "
+        "at once). A reused run was trained earlier by the same config and training code (its "
+        "study key, which hashes the resolved config, the track and `snnkart/rl` and "
+        "`snnkart/envs`, matched); the study evaluated it again at its commit.",
+        "",
+        end,
+    ]
+    return "\n".join(lines)
