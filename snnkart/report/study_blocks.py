@@ -154,30 +154,31 @@ def _cell_name(record: StudyRecord, c: CellSummary) -> str:
 
 
 def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
-                     main_job: tuple[dict[str, object], str], begin: str, end: str) -> str:  # fmt: skip
+                     main_job: tuple[dict[str, object], str], begin: str, end: str,
+                     jobs: int = 2) -> str:  # fmt: skip
     """How each published result is made again and what it cost on the machine that made it:
-    per study its config, command, runs (reused ones trained by an earlier, identical study),
-    training and evaluation wall-clock, and the runs' own training time summed; the main job's
-    wall-clock; the total."""
+    per study its config, command and runs; its runs' training time summed (a resumed study
+    reuses the runs it had finished, and a run's own time counts wherever it was trained),
+    evaluation wall-clock, and the whole estimated as summed training / ``jobs`` plus
+    evaluation; the main job's wall-clock; the total."""
     bench, bench_source = main_job
     sources = [source for _, source, _ in studies] + [bench_source]
     lines = [
         begin.format(source=", ".join(sources)),
         "",
-        "| result | command | commit | runs | training | evaluation | runs' training, summed |",
+        "| result | command | commit | runs | training, summed over runs | evaluation | whole |",
         "|---|---|---|---|---|---|---|",
     ]
     total = 0.0
     for record, source, config in studies:
         commit, w = check_publishable(record, source), record.wall_clock
-        summed = sum(r.train_seconds for r in record.runs) / 60
-        reused = f" ({w.runs_reused} reused)" if w.runs_reused else ""
-        total += w.train_seconds + w.eval_seconds
-        out = Path(config).stem
+        summed = sum(r.train_seconds for r in record.runs)
+        whole = summed / jobs + w.eval_seconds
+        total += whole
         lines.append(
-            f"| `{source}` | `snnkart study {config} --out runs/{out} --jobs 2` | {commit} | "
-            f"{w.runs}{reused} | {w.train_seconds / 60:.1f} min | {w.eval_seconds / 60:.1f} min "
-            f"| {summed:.0f} min |"
+            f"| `{source}` | `snnkart study {config} --out runs/{Path(config).stem} --jobs "
+            f"{jobs}` | {commit} | {w.runs} | {summed / 60:.0f} min | {w.eval_seconds / 60:.1f} "
+            f"min | {whole / 60:.0f} min |"
         )
     machine = bench.get("machine")
     commit = str(machine.get("commit") if isinstance(machine, dict) else "unknown")
@@ -185,13 +186,15 @@ def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
     total += wall
     lines += [
         f"| `{bench_source}` | `python -m benchmarks.bench_main_job` | {commit} | 1 | "
-        f"{wall / 60:.1f} min (training, deployment and report) | | |",
+        f"| | {wall / 60:.1f} min (training, deployment and report) |",
         "",
-        f"In all {total / 3600:.1f} hours of wall-clock on "
-        f"{(studies[0][0].machine or {}).get('cores', '?')} cores, one study at a time (two runs "
-        "at once). A reused run was trained earlier by the same config and training code (its "
-        "study key, which hashes the resolved config, the track and `snnkart/rl` and "
-        "`snnkart/envs`, matched); the study evaluated it again at its commit.",
+        f"In all about {total / 3600:.1f} hours on {(studies[0][0].machine or {}).get('cores', '?')}"
+        f" cores, one study at a time, {jobs} runs at once. Whole: the runs' training summed / "
+        f"{jobs} plus the evaluation's wall-clock. A study interrupted and started again reuses "
+        "the runs it had finished, and one may reuse the runs of an earlier commit: a run is "
+        "reused only when its study key (the resolved config, the track, and the code of "
+        "`snnkart/rl` and `snnkart/envs`) matches; every run is evaluated again at the "
+        "record's commit.",
         "",
         end,
     ]
