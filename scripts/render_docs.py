@@ -17,6 +17,7 @@ a clean commit (``snnkart study studies/<name>.toml``; the record copied in).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 from snnkart.app.pipeline import DEMO_SEED
@@ -24,9 +25,9 @@ from snnkart.app.study_summary import ORIGINAL
 from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
 from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
 from snnkart.report.main_job_block import main_job_block
-from snnkart.report.study_blocks import study_block
+from snnkart.report.study_blocks import cells_block, every_seed_block, regenerate_block, study_block
 from snnkart.report.study_plots import figure as study_figure
-from snnkart.report.study_record import StudyRecord
+from snnkart.report.study_record import CellSummary, StudyRecord
 
 ROOT = Path(__file__).resolve().parents[1]
 FRONTIER = "docs/frontier/study.json"
@@ -48,6 +49,44 @@ STUDY_FIGURES = {
     "docs/results/big_S-finishes.png": ("docs/results/big_S.json", "finishes"),
 }
 """Figures drawn from a published study's record: file -> (record, curve key)."""
+EVERY_SEED = (
+    "docs/results.md",
+    "docs/results/every-seed.json, docs/results/held-out-reporting.json",
+)
+"""The page whose "Does every seed learn?" table joins these records (a row per track)."""
+GAZEBO_FIRST = ORIGINAL["gazebo"]["snn_first"]
+CELL_BLOCKS: dict[tuple[str, str], tuple[str, Callable[[CellSummary], bool]]] = {
+    ("docs/results.md", "docs/results/ablation.json"): (
+        "Each variant changes one thing from the steer SNN's defaults (base).",
+        lambda c: True,
+    ),
+    (
+        "docs/results.md",
+        "docs/results/small_S.json, docs/results/big_S.json, "
+        "docs/bc/gazebo.json, docs/frontier/study.json",
+    ): (
+        "The gazebo SNN in every reporting study that trained one, and the sigma-delta "
+        f"policies of the frontier study; the original's single run first finished at "
+        f"{GAZEBO_FIRST / 1000:.0f}k steps.",
+        lambda c: c.env == "gazebo" and c.policy in ("snn", "sdnn"),
+    ),
+}
+"""Tables of chosen cells: (page, its records joined by ", ") -> (intro, which cells)."""
+PUBLISHED = {
+    "docs/results/small_S.json": "studies/small_S.toml",
+    "docs/results/big_S.json": "studies/big_S.toml",
+    "docs/results/every-seed.json": "studies/every-seed.toml",
+    "docs/results/held-out-reporting.json": "studies/held-out-reporting.toml",
+    "docs/results/ablation.json": "studies/ablation.toml",
+    "docs/generalisation/study.json": "studies/generalisation.toml",
+    "docs/bc/steer.json": "studies/bc-steer.toml",
+    "docs/bc/gazebo.json": "studies/bc-gazebo.toml",
+    "docs/frontier/study.json": "studies/frontier.toml",
+}
+"""Every published study record and the config that makes it again (tests/test_docs.py checks
+that they agree and that every reporting config is here)."""
+REGENERATE = ("docs/results.md", ", ".join([*PUBLISHED, MAIN_JOB[1]]))
+"""The page's table of how every published result is made again, and what it cost."""
 
 
 def rendered(page: str, source: str) -> str:
@@ -55,6 +94,21 @@ def rendered(page: str, source: str) -> str:
     if (page, source) == MAIN_JOB:
         bench = json.loads((ROOT / source).read_text())
         block = main_job_block(bench, source, DEMO_SEED, BEGIN, END)
+        return replace_block((ROOT / page).read_text(), block, source)
+    if (page, source) == EVERY_SEED:
+        records = [(StudyRecord.read(ROOT / s), s) for s in source.split(", ")]
+        block = every_seed_block(records, BEGIN, END)
+        return replace_block((ROOT / page).read_text(), block, source)
+    if (page, source) == REGENERATE:
+        studies = [(StudyRecord.read(ROOT / s), s, c) for s, c in PUBLISHED.items()]
+        bench = json.loads((ROOT / MAIN_JOB[1]).read_text())
+        block = regenerate_block(studies, (bench, MAIN_JOB[1]), BEGIN, END)
+        return replace_block((ROOT / page).read_text(), block, source)
+    if (page, source) in CELL_BLOCKS:
+        intro, chosen = CELL_BLOCKS[page, source]
+        read = [(StudyRecord.read(ROOT / s), s) for s in source.split(", ")]
+        rows = [(r, s, c) for r, s in read for c in r.cells if chosen(c)]
+        block = cells_block(rows, BEGIN, END, intro)
         return replace_block((ROOT / page).read_text(), block, source)
     if (page, source) in STUDIES:
         record = StudyRecord.read(ROOT / source)
@@ -71,7 +125,7 @@ def rendered(page: str, source: str) -> str:
 
 def blocks() -> list[tuple[str, str]]:
     """Every (page, source) pair with a generated block."""
-    return [*PAGES.items(), *sorted(STUDIES), MAIN_JOB]
+    return [*PAGES.items(), *sorted(STUDIES), MAIN_JOB, EVERY_SEED]
 
 
 def main() -> None:
