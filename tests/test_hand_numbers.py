@@ -13,7 +13,12 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS_SECTIONS = {
     "README.md": ["Results: small_S compared with the original"],
-    "docs/results.md": ["small_S: compared with the original", "big_S", "Does every seed learn?"],
+    "docs/results.md": [
+        "small_S: compared with the original",
+        "big_S",
+        "The gazebo SNN on reporting seeds",
+        "Does every seed learn?",
+    ],
     "docs/training.md": ["Does a BC warm start help PPO? Yes, on both envs"],
     "docs/tracks.md": ["Does a policy carry to tracks it never trained on?"],
 }

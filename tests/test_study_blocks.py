@@ -102,14 +102,16 @@ def test_chosen_cells_by_hand_and_their_settings() -> None:
     runs = [r for r in record.runs if r.variant == "bc" and r.policy == "snn"]
     first = statistics.median(r.first_finish_step or 0 for r in runs)  # every seed finished
     mark = statistics.median(r.steps_to_finishes or 0 for r in runs)
-    row = next(line for line in block.splitlines() if line.startswith("| steer · SNN · bc"))
+    row = next(
+        line for line in block.splitlines() if line.startswith("| small_S · steer · SNN · bc")
+    )
     assert "(`bc.data=benchmarks/bc-data/steer-small_S-pursuit.npz`, `bc.epochs=20`)" in row
     cols = row.split(" | ")
     assert cols[2].startswith(f"{first / 1000:.0f}k (") and cols[3].startswith(
         f"{mark / 1000:.0f}k ("
     ), row
     assert "| cell | seeds | first finish | 300 finishes |" in block
-    assert "| study |" not in block and sum(line.startswith("| steer") for line in
+    assert "| study |" not in block and sum(line.startswith("| small_S · steer") for line in
                                            block.splitlines()) == 2  # fmt: skip
     two = cells_block([*rows, (record, "t.json", rows[0][2])], BEGIN, END, "Intro.")
     assert "| study | cell |" in two and "`s.json` (commit" in two and "`t.json` (commit" in two

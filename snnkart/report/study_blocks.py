@@ -119,7 +119,7 @@ def cells_block(rows: list[tuple[StudyRecord, str, CellSummary]], begin: str, en
     sources = list(dict.fromkeys(source for _, source, _ in rows))
     commits = {source: check_publishable(record, source) for record, source, _ in rows}
     marks = {record.study.finishes for record, _, _ in rows}
-    mark = f"{marks.pop()} finishes" if len(marks) == 1 else "the finishes mark"
+    mark = f"{marks.pop()} finishes" if len(marks) == 1 else "to the mark (finishes)"
     several = len(sources) > 1
     lines = [
         begin.format(source=", ".join(sources)),
@@ -146,10 +146,10 @@ def cells_block(rows: list[tuple[StudyRecord, str, CellSummary]], begin: str, en
 
 
 def _cell_name(record: StudyRecord, c: CellSummary) -> str:
-    """env · POLICY · variant, with the variant's settings (``base``: none)."""
+    """track · env · POLICY · variant, with the variant's settings (``base``: none)."""
     sets = next((v for k, v in record.study.variants.items()
                  if k.rpartition(":")[2] == c.variant), [])  # fmt: skip
-    name = " · ".join(x for x in (c.env, c.policy.upper(), c.variant) if x)
+    name = " · ".join(x for x in (Path(c.track).stem, c.env, c.policy.upper(), c.variant) if x)
     return name + (f" (`{'`, `'.join(sets)}`)" if sets else "")
 
 
