@@ -33,3 +33,16 @@ def test_a_page_without_its_markers_is_refused() -> None:
 
     with pytest.raises(ValueError, match="no generated block"):
         replace_block("# Energy\n\nno markers here\n", "block")
+
+
+def test_the_bc_scratch_arm_repeats_the_small_s_runs() -> None:
+    """docs/results.md says so: same seeds and settings, deterministic training on the CPU."""
+    from snnkart.report.study_record import StudyRecord
+
+    def steps(path: str, variant: str) -> dict[tuple[str, int], tuple[int | None, int | None]]:
+        record = StudyRecord.read(ROOT / path)
+        return {(r.policy, r.seed): (r.first_finish_step, r.steps_to_finishes)
+                for r in record.runs if r.env == "gazebo" and r.variant == variant}  # fmt: skip
+
+    assert steps("docs/bc/gazebo.json", "scratch") == steps("docs/results/small_S.json", "")
+    assert "repeats the small_S study's runs to the step" in (ROOT / "docs/results.md").read_text()
