@@ -47,6 +47,7 @@ MAIN_JOB = ("docs/deployment.md", "benchmarks/results/bench_main_job-8c4f9a5.jso
 STUDY_FIGURES = {
     "docs/results/small_S-finishes.png": ("docs/results/small_S.json", "finishes"),
     "docs/results/big_S-finishes.png": ("docs/results/big_S.json", "finishes"),
+    "docs/results/ablation-finishes.png": ("docs/results/ablation.json", "finishes"),
 }
 """Figures drawn from a published study's record: file -> (record, curve key)."""
 EVERY_SEED = (
@@ -60,7 +61,8 @@ GAZEBO_SOURCES = ", ".join(["docs/results/small_S.json", "docs/results/big_S.jso
                             "docs/bc/gazebo.json"])  # fmt: skip
 CELL_BLOCKS: dict[tuple[str, str], tuple[str, Callable[[CellSummary], bool]]] = {
     ("docs/results.md", "docs/results/ablation.json"): (
-        "Each variant changes one thing from the steer SNN's defaults (base).",
+        "Each variant changes one thing from the steer SNN's defaults (base: current "
+        "encoding, T = 8, LIF, surrogate slope 25, no rate penalty).",
         lambda c: True,
     ),
     ("docs/results.md", GAZEBO_SOURCES): (

@@ -17,6 +17,7 @@ RESULTS_SECTIONS = {
         "small_S: compared with the original",
         "big_S",
         "The gazebo SNN on reporting seeds",
+        "The SNN design ablation",
         "Does every seed learn?",
     ],
     "docs/training.md": ["Does a BC warm start help PPO? Yes, on both envs"],
