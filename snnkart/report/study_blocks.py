@@ -157,45 +157,48 @@ def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
                      main_job: tuple[dict[str, object], str], begin: str, end: str,
                      jobs: int = 2) -> str:  # fmt: skip
     """How each published result is made again and what it cost on the machine that made it:
-    per study its config, command and runs; its runs' training time summed (a resumed study
-    reuses the runs it had finished, and a run's own time counts wherever it was trained),
-    evaluation wall-clock, and the whole estimated as summed training / ``jobs`` plus
-    evaluation; the main job's wall-clock; the total."""
+    per study its config, command and runs, the wall-clock of training and evaluation as its
+    record measured them, and its runs' own training time summed (a study started again reuses
+    the runs it had finished, whose training its wall-clock does not hold); the main job's
+    wall-clock; the total."""
     bench, bench_source = main_job
     sources = [source for _, source, _ in studies] + [bench_source]
     lines = [
         begin.format(source=", ".join(sources)),
         "",
-        "| result | command | commit | runs | training, summed over runs | evaluation | whole |",
+        "| result | command | commit | runs | training | evaluation | runs' training, summed |",
         "|---|---|---|---|---|---|---|",
     ]
-    total = 0.0
+    total, reused_any = 0.0, False
     for record, source, config in studies:
         commit, w = check_publishable(record, source), record.wall_clock
         summed = sum(r.train_seconds for r in record.runs)
-        whole = summed / jobs + w.eval_seconds
-        total += whole
+        total += w.train_seconds + w.eval_seconds
+        reused_any = reused_any or w.runs_reused > 0
+        runs = f"{w.runs} ({w.runs_reused} reused)" if w.runs_reused else str(w.runs)
         lines.append(
             f"| `{source}` | `snnkart study {config} --out runs/{Path(config).stem} --jobs "
-            f"{jobs}` | {commit} | {w.runs} | {summed / 60:.0f} min | {w.eval_seconds / 60:.1f} "
-            f"min | {whole / 60:.0f} min |"
+            f"{jobs}` | {commit} | {runs} | {w.train_seconds / 60:.1f} min | "
+            f"{w.eval_seconds / 60:.1f} min | {summed / 60:.0f} min |"
         )
     machine = bench.get("machine")
     commit = str(machine.get("commit") if isinstance(machine, dict) else "unknown")
     wall = float(bench["wall_s"])  # type: ignore[arg-type]
     total += wall
+    cores = (studies[0][0].machine or {}).get("cores", "?")
     lines += [
         f"| `{bench_source}` | `python -m benchmarks.bench_main_job` | {commit} | 1 | "
-        f"| | {wall / 60:.1f} min (training, deployment and report) |",
+        f"{wall / 60:.1f} min (training, deployment and report) | | |",
         "",
-        f"In all about {total / 3600:.1f} hours on {(studies[0][0].machine or {}).get('cores', '?')}"
-        f" cores, one study at a time, {jobs} runs at once. Whole: the runs' training summed / "
-        f"{jobs} plus the evaluation's wall-clock. A study interrupted and started again reuses "
-        "the runs it had finished, and one may reuse the runs of an earlier commit: a run is "
-        "reused only when its study key (the resolved config, the track, and the code of "
-        "`snnkart/rl` and `snnkart/envs`) matches; every run is evaluated again at the "
-        "record's commit.",
-        "",
-        end,
+        f"The records' wall-clock adds up to {total / 3600:.1f} hours on {cores} cores, one "
+        f"study at a time, {jobs} runs at once.",
     ]
-    return "\n".join(lines)
+    if reused_any:
+        lines[-1] += (
+            " A study started again reuses the runs it had finished, and may reuse runs of an "
+            "earlier commit: only when a run's study key (the resolved config, the track, and "
+            "the code of `snnkart/rl` and `snnkart/envs`) matches. A reused run's training is "
+            "not in its record's wall-clock but is in the last column; every run is evaluated "
+            "again at the record's commit."
+        )
+    return "\n".join([*lines, "", end])
