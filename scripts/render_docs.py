@@ -82,10 +82,12 @@ PUBLISHED = {
     "docs/generalisation/study.json": "studies/generalisation.toml",
     "docs/bc/steer.json": "studies/bc-steer.toml",
     "docs/bc/gazebo.json": "studies/bc-gazebo.toml",
-    "docs/frontier/study.json": "studies/frontier.toml",
 }
 """Every published study record and the config that makes it again (tests/test_docs.py checks
 that they agree and that every reporting config is here)."""
+PENDING = {"studies/frontier.toml": "docs/frontier/study.json"}
+"""Reporting configs whose rerun at the tag is under way: their pages still show an earlier
+record (the frontier's first run was on tuning seeds), named as such on the page."""
 REGENERATE = ("docs/results.md", ", ".join([*PUBLISHED, MAIN_JOB[1]]))
 """The page's table of how every published result is made again, and what it cost."""
 
@@ -131,7 +133,8 @@ def blocks() -> list[tuple[str, str]]:
         *sorted(STUDIES),
         MAIN_JOB,
         EVERY_SEED,
-        ("docs/results.md", GAZEBO_SOURCES),
+        *sorted(CELL_BLOCKS),
+        REGENERATE,
     ]
 
 

@@ -46,3 +46,25 @@ def test_the_bc_scratch_arm_repeats_the_small_s_runs() -> None:
 
     assert steps("docs/bc/gazebo.json", "scratch") == steps("docs/results/small_S.json", "")
     assert "repeats the small_S study's runs to the step" in (ROOT / "docs/results.md").read_text()
+
+
+def test_every_published_record_is_what_its_config_runs() -> None:
+    """Each published study record names the settings of the committed config that makes it
+    again (a config changed after its results were published fails here), and every
+    reporting config is published or its rerun is named as under way."""
+    from snnkart.app.study_run import load_study
+    from snnkart.report.study_record import StudyRecord
+
+    render = _render_docs()
+    for source, config in render.PUBLISHED.items():
+        study, record = load_study(ROOT / config), StudyRecord.read(ROOT / source).study
+        for key in ("name", "data", "tracks", "envs", "policies", "seeds", "steps", "finishes",
+                    "eval_episodes", "sets", "variants", "eval_tracks"):  # fmt: skip
+            assert getattr(study, key) == getattr(record, key), f"{config} vs {source}: {key}"
+    reporting = {f"studies/{p.name}" for p in (ROOT / "studies").glob("*.toml")
+                 if load_study(p).data == "reporting"}  # fmt: skip
+    assert reporting == {*render.PUBLISHED.values(), *render.PENDING}
+    for config, source in render.PENDING.items():
+        assert StudyRecord.read(ROOT / source).study.data == "tuning", (
+            f"{source} is a reporting record now: move {config} to PUBLISHED"
+        )

@@ -18,6 +18,7 @@ RESULTS_SECTIONS = {
         "big_S",
         "The gazebo SNN on reporting seeds",
         "The SNN design ablation",
+        "Making every result again",
         "Does every seed learn?",
     ],
     "docs/training.md": ["Does a BC warm start help PPO? Yes, on both envs"],
