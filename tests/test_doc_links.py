@@ -184,3 +184,9 @@ def test_the_checks_see_what_they_check() -> None:
         "does-a-bc-warm-start-help-ppo-yes-on-both-envs"
     )
     assert expand("s-{ann,snn}/") == ["s-ann/", "s-snn/"]
+
+
+def test_the_readme_names_the_extras_ci_installs() -> None:
+    ci = re.search(r"SNNKART_EXTRAS=(\S+)", (ROOT / ".ci/run").read_text())
+    assert ci is not None
+    assert f"`SNNKART_EXTRAS={ci.group(1)}`" in (ROOT / "README.md").read_text()
