@@ -94,36 +94,36 @@ REGENERATE = ("docs/results.md", ", ".join([*PUBLISHED, MAIN_JOB[1]]))
 
 def rendered(page: str, source: str) -> str:
     """The page's text with its generated block rendered from ``source``."""
+    return replace_block((ROOT / page).read_text(), block(page, source), source)
+
+
+def _records(source: str) -> list[tuple[StudyRecord, str]]:
+    """The study records a block's source names, joined by ", "."""
+    return [(StudyRecord.read(ROOT / s), s) for s in source.split(", ")]
+
+
+def block(page: str, source: str) -> str:
+    """The generated block of ``page`` whose source is ``source``."""
     if (page, source) == MAIN_JOB:
-        bench = json.loads((ROOT / source).read_text())
-        block = main_job_block(bench, source, DEMO_SEED, BEGIN, END)
-        return replace_block((ROOT / page).read_text(), block, source)
+        return main_job_block(json.loads((ROOT / source).read_text()), source, DEMO_SEED,
+                              BEGIN, END)  # fmt: skip
     if (page, source) == EVERY_SEED:
-        records = [(StudyRecord.read(ROOT / s), s) for s in source.split(", ")]
-        block = every_seed_block(records, BEGIN, END)
-        return replace_block((ROOT / page).read_text(), block, source)
+        return every_seed_block(_records(source), BEGIN, END)
     if (page, source) == REGENERATE:
         studies = [(StudyRecord.read(ROOT / s), s, c) for s, c in PUBLISHED.items()]
         bench = json.loads((ROOT / MAIN_JOB[1]).read_text())
-        block = regenerate_block(studies, (bench, MAIN_JOB[1]), BEGIN, END)
-        return replace_block((ROOT / page).read_text(), block, source)
+        return regenerate_block(studies, (bench, MAIN_JOB[1]), BEGIN, END)
     if (page, source) in CELL_BLOCKS:
         intro, chosen = CELL_BLOCKS[page, source]
-        read = [(StudyRecord.read(ROOT / s), s) for s in source.split(", ")]
-        rows = [(r, s, c) for r, s in read for c in r.cells if chosen(c)]
-        block = cells_block(rows, BEGIN, END, intro)
-        return replace_block((ROOT / page).read_text(), block, source)
+        rows = [(r, s, c) for r, s in _records(source) for c in r.cells if chosen(c)]
+        return cells_block(rows, BEGIN, END, intro)
     if (page, source) in STUDIES:
-        record = StudyRecord.read(ROOT / source)
-        block = study_block(record, source, BEGIN, END, ORIGINAL)
-        return replace_block((ROOT / page).read_text(), block, source)
+        return study_block(StudyRecord.read(ROOT / source), source, BEGIN, END, ORIGINAL)
     if source == FRONTIER:
         summary = frontier(StudyRecord.read(ROOT / source))
         render = verdicts_block if page == "README.md" else frontier_block
-        block = render(summary, source, BEGIN, END)
-    else:
-        block = energy_block(json.loads((ROOT / source).read_text()), source)
-    return replace_block((ROOT / page).read_text(), block, source)
+        return render(summary, source, BEGIN, END)
+    return energy_block(json.loads((ROOT / source).read_text()), source)
 
 
 def blocks() -> list[tuple[str, str]]:

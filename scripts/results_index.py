@@ -25,6 +25,7 @@ used under the results protocol of ``docs/results.md``.
 from __future__ import annotations
 
 import fnmatch
+import functools
 import json
 import re
 import subprocess
@@ -186,11 +187,18 @@ def _seeds_and_tracks(record: dict[str, Any]) -> tuple[set[int], set[str]]:
     return seeds, tracks
 
 
+@functools.cache
+def published_tags(root: Path = ROOT) -> dict[str, str]:
+    """docs/tags.toml: the tags results are published at, with their commits (a clone may
+    lack the tags themselves)."""
+    return {k: str(v) for k, v in tomllib.loads((root / "docs/tags.toml").read_text()).items()}
+
+
 def _demo_seed(record: dict[str, Any]) -> int:
     """The main job's training seed: DEMO_SEED (101) from tag results-1 on; 1 before it (those
     records name no seed)."""
     commit = str((record.get("machine") or {}).get("commit", "")).removesuffix("-dirty")
-    tag = tomllib.loads((ROOT / "docs/tags.toml").read_text())["results-1"]  # a clone may lack tags
+    tag = published_tags()["results-1"]
     since = subprocess.run(["git", "merge-base", "--is-ancestor", tag, commit],
                            cwd=ROOT, capture_output=True).returncode == 0  # fmt: skip
     return DEMO_SEED if since else 1

@@ -16,7 +16,6 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import tomli as tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks/results"
@@ -99,6 +98,11 @@ def expand(pattern: str) -> list[str]:
     return _script().expand(pattern)  # type: ignore[no-any-return]
 
 
+def published_tags() -> dict[str, str]:
+    """docs/tags.toml as the catalogue script reads it: the published tags and their commits."""
+    return _script().published_tags()  # type: ignore[no-any-return]
+
+
 @functools.cache
 def _script():  # type: ignore[no-untyped-def]
     from test_results_catalogue import _index_script
@@ -134,11 +138,6 @@ def git_tags() -> dict[str, str]:
     out = subprocess.run(["git", "-C", str(ROOT), "tag", "--list", fmt], capture_output=True,
                          text=True, check=True)  # fmt: skip
     return {name: ref[-40:] for name, ref in (line.split() for line in out.stdout.splitlines())}
-
-
-def published_tags() -> dict[str, str]:
-    """docs/tags.toml: the tags results are published at, with their commits."""
-    return {k: str(v) for k, v in tomllib.loads((ROOT / "docs/tags.toml").read_text()).items()}
 
 
 def test_the_readme_is_short() -> None:

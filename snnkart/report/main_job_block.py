@@ -10,12 +10,18 @@ from typing import Any
 from snnkart.errors import ReportError
 
 
-def main_job_block(bench: dict[str, Any], source: str, seed: int, begin: str, end: str) -> str:
-    """The block: training, the quantisation's effect, Lava's parity and speed, and the counts
-    per inference; ``seed`` is the demo's training seed (the record does not carry it)."""
+def bench_commit(bench: dict[str, Any], source: str) -> str:
+    """The main-job record's commit, if it may be published; else a one-line refusal."""
     commit = str(bench.get("machine", {}).get("commit", "unknown"))
     if commit.endswith("-dirty") or commit == "unknown":
         raise ReportError(f"{source}: made at commit {commit}; run the benchmark at a clean commit")
+    return commit
+
+
+def main_job_block(bench: dict[str, Any], source: str, seed: int, begin: str, end: str) -> str:
+    """The block: training, the quantisation's effect, Lava's parity and speed, and the counts
+    per inference; ``seed`` is the demo's training seed (the record does not carry it)."""
+    commit = bench_commit(bench, source)
     t, q, report = bench["training"], bench["torch_vs_fixed_point"], bench["report"]
     fixed, flt = bench["lava"]["fixed"], bench["lava"]["float"]
     first = t["first_finish_step"]

@@ -6,9 +6,12 @@ data from a clean commit (docs/results.md)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
+from snnkart.envs.tracks import short_name
 from snnkart.errors import ReportError
 from snnkart.report.held_out import held_out_lines
+from snnkart.report.main_job_block import bench_commit
 from snnkart.report.study_document import (
     deployed_lines,
     spread_count,
@@ -149,12 +152,12 @@ def _cell_name(record: StudyRecord, c: CellSummary) -> str:
     """track · env · POLICY · variant, with the variant's settings (``base``: none)."""
     sets = next((v for k, v in record.study.variants.items()
                  if k.rpartition(":")[2] == c.variant), [])  # fmt: skip
-    name = " · ".join(x for x in (Path(c.track).stem, c.env, c.policy.upper(), c.variant) if x)
+    name = " · ".join(x for x in (short_name(c.track), c.env, c.policy.upper(), c.variant) if x)
     return name + (f" (`{'`, `'.join(sets)}`)" if sets else "")
 
 
 def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
-                     main_job: tuple[dict[str, object], str], begin: str, end: str,
+                     main_job: tuple[dict[str, Any], str], begin: str, end: str,
                      jobs: int = 2) -> str:  # fmt: skip
     """How each published result is made again and what it cost on the machine that made it:
     per study its config, command and runs, the wall-clock of training and evaluation as its
@@ -181,9 +184,8 @@ def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
             f"{jobs}` | {commit} | {runs} | {w.train_seconds / 60:.1f} min | "
             f"{w.eval_seconds / 60:.1f} min | {summed / 60:.0f} min |"
         )
-    machine = bench.get("machine")
-    commit = str(machine.get("commit") if isinstance(machine, dict) else "unknown")
-    wall = float(bench["wall_s"])  # type: ignore[arg-type]
+    commit = bench_commit(bench, bench_source)
+    wall = float(bench["wall_s"])
     total += wall
     cores = (studies[0][0].machine or {}).get("cores", "?")
     lines += [
