@@ -20,6 +20,8 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
+import tomli as tomllib
+
 from snnkart.app.pipeline import DEMO_SEED
 from snnkart.app.study_summary import ORIGINAL
 from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
@@ -42,8 +44,15 @@ STUDIES = {  # a page's block per study.json: (page, source)
     ("README.md", "docs/results/small_S.json"),
     ("docs/results.md", "docs/results/big_S.json"),
 }
-MAIN_JOB = ("docs/deployment.md", "benchmarks/results/bench_main_job-8c4f9a5.json")
-"""The page quoting the main job, and the record of ``python -m benchmarks.bench_main_job``."""
+RESULTS_TAG = "results-1"
+"""The tag every published result is made at (docs/tags.toml gives its commit)."""
+_TAGS = tomllib.loads((ROOT / "docs/tags.toml").read_text())
+MAIN_JOB = (
+    "docs/deployment.md",
+    f"benchmarks/results/bench_main_job-{_TAGS[RESULTS_TAG][:7]}.json",
+)
+"""The page quoting the main job, and the record ``python -m benchmarks.bench_main_job`` wrote
+at the results tag."""
 STUDY_FIGURES = {
     "docs/results/small_S-finishes.png": ("docs/results/small_S.json", "finishes"),
     "docs/results/big_S-finishes.png": ("docs/results/big_S.json", "finishes"),

@@ -151,7 +151,7 @@ def test_the_main_job_block_is_the_records_numbers() -> None:
 
     from snnkart.report.main_job_block import main_job_block
 
-    path = Path(__file__).parents[1] / "benchmarks/results/bench_main_job-8c4f9a5.json"
+    path = Path(__file__).parents[1] / "tests/data/records/main-job.json"
     bench = json.loads(path.read_text())
     block = main_job_block(bench, "b.json", 101, BEGIN, END)
     for piece in ("commit 8c4f9a5", "seed 101", "301,056 steps", "first finish at 40,392 steps",
