@@ -31,7 +31,7 @@ TINY = ["ppo.num_envs=2", "ppo.rollout_steps=64", "ppo.update_epochs=1", "ppo.nu
 BATCH = 128
 
 
-def _write_study(path: Path, cells: str = "") -> Path:
+def _write_study(path: Path, cells: str = "", episodes: int = 2) -> Path:
     path.write_text(f"""
 schema = "snnkart/study-config/v1"
 data = "tuning"
@@ -41,7 +41,7 @@ policies = ["ann", "snn"]
 seeds = [1, 2]
 steps = {3 * BATCH}
 finishes = 1
-eval_episodes = 2
+eval_episodes = {episodes}
 deploy_episodes = 2
 sets = {json.dumps(TINY)}
 {cells}
@@ -128,6 +128,16 @@ def test_study_trains_evaluates_summarises_and_resumes(tmp_path: Path) -> None:
     assert len(list((out / "runs").glob("small_S-grid-snn-s1.stale-*"))) == 1
     cfg = (out / "runs/small_S-grid-snn-s1/config.toml").read_text()
     assert "beta = 0.8" in cfg
+
+    # another evaluation setting evaluates every run again, the training reused (an evaluation
+    # is keyed by its request, checkpoint and code, not by being newer than the checkpoint)
+    more = _study(_write_study(tmp_path / "study.toml", 'cells = {"grid-snn" = ["snn.beta=0.8"]}',
+                               episodes=3), out)  # fmt: skip
+    assert more["wall_clock"]["runs_reused"] == 4
+    for r in more["runs"]:
+        run_dir = out / "runs" / r["name"]
+        name = "study-eval-nir-ref-fixed/deploy.json" if r["policy"] == "snn" else "study-eval.json"
+        assert json.loads((run_dir / name).read_text())["summary"]["episodes"] == 3, r["name"]
 
 
 def test_spreads_and_the_snn_against_the_ann_by_hand() -> None:

@@ -3,12 +3,32 @@
 from __future__ import annotations
 
 import datetime as dt
+import functools
+import hashlib
 import os
 import platform
 import subprocess
 from pathlib import Path
 
 SOURCE = Path(__file__).resolve().parents[2]  # the checkout snnkart runs from
+PACKAGE = SOURCE / "snnkart"
+TRAINING_CODE = ("rl", "envs")
+"""The packages a run's training depends on (its study key)."""
+EVALUATION_CODE = ("app", "backends", "backends/lava_procs", "contract", "energy", "envs", "eval",
+                   "export", "rl")  # fmt: skip
+"""The packages an evaluation's numbers depend on (everything but the report, the command
+line and ROS)."""
+
+
+@functools.cache
+def code_digest(packages: tuple[str, ...] = TRAINING_CODE) -> str:
+    """The sha256 of every source file of these packages of :mod:`snnkart` (by file name: the
+    study keys of runs trained before evaluations had keys stay the same)."""
+    h = hashlib.sha256()
+    for package in packages:
+        for path in sorted((PACKAGE / package).glob("*.py")):
+            h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
 
 
 def git_commit(cwd: Path = SOURCE) -> str:

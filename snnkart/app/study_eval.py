@@ -4,12 +4,15 @@ in fixed point, checked step by step against the reference of the same arithmeti
 
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.protocol import is_tuning_track
+from snnkart.app.provenance import EVALUATION_CODE, code_digest
 from snnkart.app.reporter import Reporter
 from snnkart.app.study_types import held_out_tracks
 from snnkart.app.worker import EvalJob, WorkerRequest, track_out
@@ -18,6 +21,7 @@ from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.energy.sd_counts import SigmaDeltaCounts
 from snnkart.envs.tracks import short_name
 from snnkart.errors import UsageError
+from snnkart.io import write_text
 from snnkart.report.study_record import DeployedRun, HeldOut, RunRecord
 
 if TYPE_CHECKING:
@@ -60,8 +64,26 @@ def _eval_job(run: Run, runs_dir: Path, study: StudyConfig) -> tuple[EvalJob, Pa
     return EvalJob(str(run_dir), episodes, seed, str(out)), out
 
 
-def _stale(result: Path, checkpoint: Path) -> bool:
-    return not result.is_file() or result.stat().st_mtime < checkpoint.stat().st_mtime
+def _eval_key(job: EvalJob) -> str:
+    """What an evaluation's numbers depend on: the request (but where it reads and writes),
+    the checkpoint's bytes and the evaluation code."""
+    request = {k: v for k, v in asdict(job).items() if k not in ("run_dir", "out")}
+    checkpoint = hashlib.sha256((Path(job.run_dir) / "checkpoint.pt").read_bytes()).hexdigest()
+    parts = {"request": request, "checkpoint": checkpoint, "code": code_digest(EVALUATION_CODE)}
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
+def _key_file(job: EvalJob) -> Path:
+    out = Path(job.out)
+    return out.with_name(out.name + ".key")
+
+
+def _stale(job: EvalJob, results: list[Path]) -> bool:
+    """Whether ``job`` must run: a result is missing, or was made from another request,
+    checkpoint or evaluation code (or before evaluations had keys)."""
+    key = _key_file(job)
+    return (not all(r.is_file() for r in results) or not key.is_file()
+            or key.read_text() != _eval_key(job))  # fmt: skip
 
 
 PARITY_FAILED = 4
@@ -79,6 +101,8 @@ def _run_all(jobs: list[tuple[str, WorkerRequest]], width: int, reporter: Report
         def ended(item: tuple[str, WorkerRequest], end: Exit) -> None:
             if end.code not in ok:
                 raise UsageError(f"{what}: {item[0]} failed (exit {end.code}): {end.tail}")
+            if isinstance(item[1], EvalJob):
+                write_text(_key_file(item[1]), _eval_key(item[1]))
             task.advance()
 
         Pool(width).run(jobs, lambda item: Job(item[1]), ended)
@@ -86,12 +110,12 @@ def _run_all(jobs: list[tuple[str, WorkerRequest]], width: int, reporter: Report
 
 def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
              reporter: Reporter) -> dict[str, Evaluation]:  # fmt: skip
-    """Each run's evaluation summary, evaluating (``jobs`` at a time) where none newer than
-    its checkpoint exists."""
+    """Each run's evaluation summary, evaluating (``jobs`` at a time) where none was made from
+    this request, checkpoint and evaluation code (:func:`_stale`)."""
     todo: list[tuple[str, WorkerRequest]] = []
     for run in runs:
         job, summary = _eval_job(run, runs_dir, study)
-        if _stale(summary, runs_dir / run.spec.name / "checkpoint.pt"):
+        if _stale(job, [summary]):
             todo.append((run.spec.name, job))
     _run_all(todo, jobs, reporter, "evaluations")
     return {run.spec.name: _summary(_eval_job(run, runs_dir, study)[1]) for run in runs}
@@ -115,8 +139,8 @@ def _held_out_job(run: Run, runs_dir: Path, study: StudyConfig,
 def evaluate_held_out(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
                       reporter: Reporter) -> dict[str, list[HeldOut]]:  # fmt: skip
     """Each run on the study's held-out tracks (``eval_tracks``), ``eval_track_episodes``
-    seeded episodes each on its evaluation backend, where no result newer than its checkpoint
-    exists; by run name (empty when the study has no held-out tracks)."""
+    seeded episodes each on its evaluation backend, where no result of this request, checkpoint
+    and code exists; by run name (empty when the study has no held-out tracks)."""
     pairs = held_out_tracks(study.eval_tracks)
     if not pairs:
         return {}
@@ -124,8 +148,7 @@ def evaluate_held_out(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs:
     todo: list[tuple[str, WorkerRequest]] = []
     for run in runs:
         job, files = _held_out_job(run, runs_dir, study, tracks)
-        checkpoint = runs_dir / run.spec.name / "checkpoint.pt"
-        if any(_stale(f, checkpoint) for f in files):
+        if _stale(job, files):
             todo.append((run.spec.name, job))
     _run_all(todo, jobs, reporter, "held-out evaluations")
     out = {}
@@ -166,21 +189,10 @@ def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyCo
     todo: list[tuple[str, WorkerRequest]] = []
     for r in chosen:
         run_dir = runs_dir / r.name
-        if _stale(run_dir / DEPLOY_DIR / "deploy.json", run_dir / "checkpoint.pt"):
-            todo.append(
-                (
-                    r.name,
-                    EvalJob(
-                        str(run_dir),
-                        study.deploy_episodes,
-                        study.eval_seed,
-                        str(run_dir / DEPLOY_DIR),
-                        "lava-sim",
-                        "fixed",
-                        sigma_delta=kinds[r.name] == "ann-sd",
-                    ),
-                )
-            )
+        job = EvalJob(str(run_dir), study.deploy_episodes, study.eval_seed, str(run_dir / DEPLOY_DIR),
+                      "lava-sim", "fixed", sigma_delta=kinds[r.name] == "ann-sd")  # fmt: skip
+        if _stale(job, [run_dir / DEPLOY_DIR / "deploy.json"]):
+            todo.append((r.name, job))
     # a deployment that left the reference still wrote its record: it shows as not bit-exact
     _run_all(todo, 1, reporter, "deployments on lava-sim", ok=(0, PARITY_FAILED))
     out = []

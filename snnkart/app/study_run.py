@@ -29,7 +29,7 @@ from pydantic import ValidationError
 
 from snnkart.app.launch import LocalPool, RunResult, RunSpec
 from snnkart.app.protocol import data_problem
-from snnkart.app.provenance import machine_info
+from snnkart.app.provenance import code_digest, machine_info
 from snnkart.app.reporter import Reporter
 from snnkart.app.study_eval import (
     Evaluation,
@@ -66,7 +66,6 @@ else:  # pragma: no cover
 
 RECORD_SCHEMA = STUDY.tag
 KEY_FILE = "study_key.txt"
-PACKAGE = Path(__file__).resolve().parents[1]
 
 
 def load_study(path: Path) -> StudyConfig:
@@ -162,15 +161,6 @@ def _only(runs: list[Run], patterns: list[str]) -> list[Run]:
         cells = ", ".join(dict.fromkeys(r.label for r in runs))
         raise UsageError(f"--only {' '.join(patterns)} matches no cell of this study ({cells})")
     return kept
-
-
-def code_digest() -> str:
-    """The training code: every source file of :mod:`snnkart.rl` and :mod:`snnkart.envs`."""
-    h = hashlib.sha256()
-    for package in ("rl", "envs"):
-        for path in sorted((PACKAGE / package).glob("*.py")):
-            h.update(path.name.encode() + b"\0" + path.read_bytes())
-    return h.hexdigest()
 
 
 def study_key(config: TrainConfig, code: str) -> str:

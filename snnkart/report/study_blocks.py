@@ -200,7 +200,8 @@ def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
             " A study started again reuses the runs it had finished, and may reuse runs of an "
             "earlier commit: only when a run's study key (the resolved config, the track, and "
             "the code of `snnkart/rl` and `snnkart/envs`) matches. A reused run's training is "
-            "not in its record's wall-clock but is in the last column, and it keeps its "
-            "evaluation unless its checkpoint is newer (`snnkart/app/study_eval.py`)."
+            "not in its record's wall-clock but is in the last column. Its evaluation is "
+            "reused only when made from the same request, checkpoint and evaluation code, "
+            "and made again otherwise (`snnkart/app/study_eval.py`)."
         )
     return "\n".join([*lines, "", end])
