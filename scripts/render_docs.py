@@ -27,7 +27,13 @@ from snnkart.app.study_summary import ORIGINAL
 from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
 from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
 from snnkart.report.main_job_block import main_job_block
-from snnkart.report.study_blocks import cells_block, every_seed_block, regenerate_block, study_block
+from snnkart.report.study_blocks import (
+    cells_block,
+    check_publishable,
+    every_seed_block,
+    regenerate_block,
+    study_block,
+)
 from snnkart.report.study_plots import figure as study_figure
 from snnkart.report.study_record import CellSummary, StudyRecord
 
@@ -130,9 +136,11 @@ def block(page: str, source: str) -> str:
     if (page, source) in STUDIES:
         return study_block(StudyRecord.read(ROOT / source), source, BEGIN, END, ORIGINAL)
     if source == FRONTIER:
-        summary = frontier(StudyRecord.read(ROOT / source))
-        render = verdicts_block if page == "README.md" else frontier_block
-        return render(summary, source, BEGIN, END)
+        record = StudyRecord.read(ROOT / source)
+        commit = check_publishable(record, source)  # reporting data at a clean commit
+        if page == "README.md":
+            return verdicts_block(frontier(record), source, BEGIN, END)
+        return frontier_block(frontier(record), source, BEGIN, END, commit)
     return energy_block(json.loads((ROOT / source).read_text()), source)
 
 

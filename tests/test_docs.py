@@ -68,3 +68,21 @@ def test_every_published_record_is_what_its_config_runs() -> None:
         assert StudyRecord.read(ROOT / source).study.data == "tuning", (
             f"{source} is a reporting record now: move {config} to PUBLISHED"
         )
+
+
+def test_the_frontier_page_refuses_a_tuning_record(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """The frontier's blocks, like the study tables, publish reporting data only."""
+    import dataclasses
+
+    import pytest
+
+    from snnkart.errors import ReportError
+    from snnkart.report.study_record import StudyRecord
+
+    render = _render_docs()
+    record = StudyRecord.read(ROOT / render.FRONTIER)
+    tuning = dataclasses.replace(record, study=dataclasses.replace(record.study, data="tuning"))
+    monkeypatch.setattr(render.StudyRecord, "read", lambda path: tuning)
+    for page in ("docs/frontier.md", "README.md"):
+        with pytest.raises(ReportError, match="tuning data cannot fill a published table"):
+            render.block(page, render.FRONTIER)

@@ -176,13 +176,14 @@ def _row(p: dict[str, Any]) -> list[str]:
             "yes" if p["keeps_accuracy"] else "no", "yes" if p["goal"] else "no", way]  # fmt: skip
 
 
-def frontier_block(summary: dict[str, Any], source: str, begin: str, end: str) -> str:
-    """The docs' generated block: per env, the dense ANN, a table of the points and the
-    verdict sentence."""
+def frontier_block(summary: dict[str, Any], source: str, begin: str, end: str,
+                   commit: str) -> str:  # fmt: skip
+    """The docs' generated block: where it comes from, then per env the dense ANN, a table of
+    the points and the verdict sentence."""
     head = ["point", "success (seeds' range)", f"nJ on {summary['chip']}",
             "x fp32 ANN, median (p95)", "x int8 ANN, median (p95)", "keeps accuracy", "goal",
             "in the way"]  # fmt: skip
-    parts = [begin.format(source=source)]
+    parts = [begin.format(source=source), f"Rendered from `{source}` (commit {commit})."]
     for env, info in summary["envs"].items():
         ann = info["ann_nj"]
         fp32, int8 = (ann[b] for b in summary["baselines"])
