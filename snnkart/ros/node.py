@@ -177,4 +177,16 @@ class DriveNode:
             raise
         finally:
             self.stop(self.result.stopped if self.done.is_set() else "stopped")
+            self._flush()
         return self.result
+
+    def _flush(self, within: float = 1.0) -> None:
+        """Wait (at most ``within`` s) until rospy's sending threads have sent the queued
+        commands. They are daemon threads, and rospy's exit hook closes the connections: a
+        zero still queued when the process exits never reaches the robot (seen once under load:
+        the listener's last command was the policy's)."""
+        connections = getattr(getattr(self.pub, "impl", None), "connections", [])
+        end = time.monotonic() + within
+        while time.monotonic() < end and any(getattr(c, "_queue", None) for c in connections):
+            time.sleep(0.005)
+        time.sleep(0.1)  # the thread writes what it took from the queue outside its lock
