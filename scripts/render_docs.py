@@ -20,11 +20,16 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-import tomli as tomllib
-
 from snnkart.app.pipeline import DEMO_SEED
 from snnkart.app.study_summary import ORIGINAL
-from snnkart.report.docs_block import BEGIN, END, energy_block, replace_block
+from snnkart.report.docs_block import (
+    BEGIN,
+    END,
+    RESULTS_TAG,
+    energy_block,
+    published_tags,
+    replace_block,
+)
 from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
 from snnkart.report.main_job_block import main_job_block
 from snnkart.report.study_blocks import (
@@ -50,12 +55,9 @@ STUDIES = {  # a page's block per study.json: (page, source)
     ("README.md", "docs/results/small_S.json"),
     ("docs/results.md", "docs/results/big_S.json"),
 }
-RESULTS_TAG = "results-1"
-"""The tag every published result is made at (docs/tags.toml gives its commit)."""
-_TAGS = tomllib.loads((ROOT / "docs/tags.toml").read_text())
 MAIN_JOB = (
     "docs/deployment.md",
-    f"benchmarks/results/bench_main_job-{_TAGS[RESULTS_TAG][:7]}.json",
+    f"benchmarks/results/bench_main_job-{published_tags(ROOT)[RESULTS_TAG][:7]}.json",
 )
 """The page quoting the main job, and the record ``python -m benchmarks.bench_main_job`` wrote
 at the results tag."""
@@ -101,9 +103,6 @@ PUBLISHED = {
 }
 """Every published study record and the config that makes it again (tests/test_docs.py checks
 that they agree and that every reporting config is here)."""
-PENDING: dict[str, str] = {}
-"""Reporting configs whose rerun at the tag is under way: their pages still show an earlier
-record, named as such on the page (none now)."""
 REGENERATE = ("docs/results.md", ", ".join([*PUBLISHED, MAIN_JOB[1]]))
 """The page's table of how every published result is made again, and what it cost."""
 

@@ -25,7 +25,6 @@ used under the results protocol of ``docs/results.md``.
 from __future__ import annotations
 
 import fnmatch
-import functools
 import json
 import re
 import subprocess
@@ -34,10 +33,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import tomli as tomllib
-
 from snnkart.app.pipeline import DEMO_SEED, DEMO_TRACK
 from snnkart.app.protocol import FIRST_REPORTING_SEED, data_problem, is_tuning_track
+from snnkart.report.docs_block import RESULTS_TAG, published_tags
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = "benchmarks/results"
@@ -187,18 +185,11 @@ def _seeds_and_tracks(record: dict[str, Any]) -> tuple[set[int], set[str]]:
     return seeds, tracks
 
 
-@functools.cache
-def published_tags(root: Path = ROOT) -> dict[str, str]:
-    """docs/tags.toml: the tags results are published at, with their commits (a clone may
-    lack the tags themselves)."""
-    return {k: str(v) for k, v in tomllib.loads((root / "docs/tags.toml").read_text()).items()}
-
-
 def _demo_seed(record: dict[str, Any]) -> int:
     """The main job's training seed: DEMO_SEED (101) from tag results-1 on; 1 before it (those
     records name no seed)."""
     commit = str((record.get("machine") or {}).get("commit", "")).removesuffix("-dirty")
-    tag = published_tags()["results-1"]
+    tag = published_tags(ROOT)[RESULTS_TAG]
     since = subprocess.run(["git", "merge-base", "--is-ancestor", tag, commit],
                            cwd=ROOT, capture_output=True).returncode == 0  # fmt: skip
     return DEMO_SEED if since else 1

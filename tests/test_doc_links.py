@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from snnkart.report.docs_block import published_tags
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks/results"
 README_MAX_LINES = 250
@@ -98,11 +100,6 @@ def expand(pattern: str) -> list[str]:
     return _script().expand(pattern)  # type: ignore[no-any-return]
 
 
-def published_tags() -> dict[str, str]:
-    """docs/tags.toml as the catalogue script reads it: the published tags and their commits."""
-    return _script().published_tags()  # type: ignore[no-any-return]
-
-
 @functools.cache
 def _script():  # type: ignore[no-untyped-def]
     from test_results_catalogue import _index_script
@@ -162,7 +159,7 @@ def test_every_cited_result_exists(page: Path) -> None:
 
 
 def test_every_named_tag_exists() -> None:
-    published = published_tags()
+    published = published_tags(ROOT)
     missing = [
         f"{page.relative_to(ROOT)}: tag `{tag}`"
         for page in documents()

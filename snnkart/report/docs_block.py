@@ -5,6 +5,8 @@ them again and compares."""
 from __future__ import annotations
 
 import re
+import sys
+from pathlib import Path
 from typing import Any
 
 from snnkart.errors import ReportError
@@ -12,10 +14,23 @@ from snnkart.report.document import md_table
 from snnkart.report.first_screen import pair_rows, sd_sentence, sentence
 from snnkart.report.sd_document import chip_rows
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
 READS = ("snnkart/report/v2", "snnkart/report/v3")
 """The report.json versions this code reads: v3, and v2 (a LIF report, as v3 writes it)."""
 BEGIN = "<!-- generated from {source} by scripts/render_docs.py: do not edit -->"
 END = "<!-- end of generated block -->"
+RESULTS_TAG = "results-1"
+"""The tag the published results are made at (docs/results.md, "Making every result again")."""
+
+
+def published_tags(root: Path) -> dict[str, str]:
+    """``root``/docs/tags.toml: the tags results are published at, with their commits (a clone
+    may lack the tags themselves)."""
+    return {k: str(v) for k, v in tomllib.loads((root / "docs/tags.toml").read_text()).items()}
 
 
 def check_version(report: dict[str, Any], source: str) -> None:
