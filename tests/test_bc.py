@@ -17,8 +17,8 @@ from snnkart.errors import ConfigError
 from snnkart.eval.expert import record_driver
 from snnkart.rl.bc import behaviour_clone
 from snnkart.rl.config import load_config
+from snnkart.rl.kinds import policy_for
 from snnkart.rl.normalise import RunningMeanStd
-from snnkart.rl.policies import policy_for
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.stopping import seeded_episodes
 
@@ -112,7 +112,7 @@ def test_a_recording_of_another_env_is_refused_before_training(
 def test_a_stateful_snn_is_cloned_on_windows(short_data: Path) -> None:
     keys = {"snn.stateful": True, "snn.encoding": "current", "bc.batch_size": 128}
     cfg, net, rms = _clone(short_data, "snn", 8, **keys)
-    assert getattr(net, "stateful", False)
+    assert net.carries_state
     summary = behaviour_clone(net, rms, cfg, Recording.load(short_data))
     assert summary["actor_loss"][-1] < 0.9 * summary["actor_loss"][0], summary["actor_loss"]
     assert summary["accuracy"] == [None] * 8

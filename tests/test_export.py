@@ -36,7 +36,8 @@ from snnkart.contract.manifest import (
 from snnkart.envs.spec import spec_hash
 from snnkart.export.nir_export import NIR_DT, ExportError, check_exportable, export_nir
 from snnkart.rl.config import load_config
-from snnkart.rl.policies import SNNPolicy, policy_for
+from snnkart.rl.kinds import policy_for
+from snnkart.rl.policies import SNNPolicy
 from snnkart.rl.trained import LoadedRun, TorchPredictor, load_run
 
 RUNS = {
@@ -356,7 +357,7 @@ def test_export_refuses_nan_weights(grid_run: LoadedRun, tmp_path: Path) -> None
 
 
 def test_unmodified_run_is_exportable(grid_run: LoadedRun) -> None:
-    check_exportable(grid_run.policy)  # the refusals above come from the modifications
+    check_exportable(grid_run.policy.snn)  # the refusals above come from the modifications
 
 
 # -- broken NIR input for the reference ---------------------------------------------------------

@@ -23,7 +23,9 @@ from snnkart.export.calibrate import AffineLayers
 from snnkart.export.sigma_delta_export import zero_block
 from snnkart.rl.buffer import RolloutBuffer
 from snnkart.rl.config import load_config
-from snnkart.rl.policies import SDNNPolicy, build_policy
+from snnkart.rl.kinds import kind
+from snnkart.rl.kinds.base import PolicySpace
+from snnkart.rl.policies import SDNNPolicy
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.rollout import IterationStats
 from snnkart.rl.sdnn import lava_weights
@@ -35,11 +37,9 @@ CLIP = 10.0
 def _policy(seed: int = 0, n_in: int = 9, n_out: int = 4, hidden: tuple[int, ...] = (12, 10)):
     """An untrained sdnn policy with biases and a readout large enough to matter."""
     torch.manual_seed(seed)
-    cfg = load_config(sets=["policy=sdnn", f"sdnn.hidden={list(hidden)}"])
-    policy = build_policy(
-        "sdnn", n_in, n_out, True, cfg.ann, cfg.snn, np.zeros(n_in), np.ones(n_in),
-        sdnn_cfg=cfg.sdnn, clip_obs=CLIP,
-    )  # fmt: skip
+    cfg = load_config(sets=["policy=sdnn", f"sdnn.hidden={list(hidden)}", f"ppo.clip_obs={CLIP}"])
+    space = PolicySpace(n_in, n_out, True, np.zeros(n_in), np.ones(n_in))
+    policy = kind("sdnn").build(cfg, space)
     assert isinstance(policy, SDNNPolicy)
     with torch.no_grad():
         for fc in policy.sdnn.affine_layers():
@@ -190,7 +190,7 @@ def test_rollout_stores_each_steps_previous_observation(tmp_path: Path) -> None:
     assert starts.any() and not starts.all()  # both kinds of step are checked
     np.testing.assert_array_equal(prev[1:][~starts], raw[:-1][~starts])
     np.testing.assert_array_equal(prev[1:][starts], raw[1:][starts])
-    assert len(stats.messages) == 200 and stats.messages[0].shape == (2,)
+    assert len(stats.kind["messages"]) == 200 and stats.kind["messages"][0].shape == (2,)
 
 
 def test_training_logs_the_penalty_and_message_rates(tmp_path: Path) -> None:
@@ -219,7 +219,7 @@ def _check_loss_adds_the_penalty(trainer: Trainer, buf: RolloutBuffer) -> None:
     assert buf.previous is not None
     zeros = torch.zeros_like(buf.rewards)
     mb = buf.flat(zeros, zeros)
-    trainer.message_penalty = 0.5
+    trainer.penalty_weights = {"messages": 0.5}
     parts, _, _ = trainer._minibatch_loss(mb)
     p = trainer.cfg.ppo
     ppo = parts["policy"] - trainer.ent_coef * parts["entropy"] + p.vf_coef * parts["value"]

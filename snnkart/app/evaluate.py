@@ -52,7 +52,7 @@ def run_eval(
     mode = "human" if render else ("rgb_array" if video is not None else None)
     env = run.config.make_env(render_mode=mode, track=choice.track)
     predictor: Any = TorchPredictor(run, seed=seed)
-    if mode is not None and run.config.policy == "snn":
+    if mode is not None and run.policy.layer_sizes():  # a spiking actor: show its activity
         predictor = _ShowingActivity(predictor, env.unwrapped)
     filmed = min(episodes, video_episodes) if video is not None else 0
     results = _episodes(env, predictor, range(seed, seed + episodes), video, filmed, reporter)

@@ -27,6 +27,7 @@ from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.errors import UsageError
 from snnkart.io import write_json
+from snnkart.rl import kinds
 
 DEMO_ENV = "grid"
 DEMO_TRACK = "small_S"
@@ -115,11 +116,12 @@ def _train(policy: str, run_dir: Path, steps: int, reporter: Reporter, stage: st
             return 0
         reporter.message(f"{stage} resuming the run in {run_dir}")
         return run_training(read_run_config(run_dir), run_dir, reporter, resume=True)
-    what = "an SNN" if policy == "snn" else "the same-width ANN baseline"
+    spiking = kinds.family(policy).spiking
+    what = "an SNN" if spiking else "the same-width ANN baseline"
     reporter.message(
         f"{stage} training {what} on {DEMO_ENV}/{DEMO_TRACK} for {steps:,} steps -> {run_dir}"
     )
-    extra = DEMO_SNN_SETTINGS if policy == "snn" else {}
+    extra = DEMO_SNN_SETTINGS if spiking else {}
     cfg = load_config(
         overrides={
             "env": DEMO_ENV, "track": DEMO_TRACK, "policy": policy,

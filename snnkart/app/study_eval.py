@@ -23,6 +23,7 @@ from snnkart.envs.tracks import short_name
 from snnkart.errors import UsageError
 from snnkart.io import write_text
 from snnkart.report.study_record import DeployedRun, HeldOut, RunRecord
+from snnkart.rl import kinds
 
 if TYPE_CHECKING:
     from snnkart.app.study_types import Run, StudyConfig
@@ -35,20 +36,23 @@ def exportable(run: Run) -> bool:
     current-based LIF trained without biases between its spiking layers (the default since
     they export), a trained sigma-delta network, or a ReLU ANN converted to one."""
     snn_cfg = run.spec.config.snn
-    if run.policy in ("sdnn", "ann-sd"):
+    family = kinds.study_family(run.policy)
+    if family.graded:
         return True
-    return run.policy == "snn" and (snn_cfg.neuron == "lif" or not snn_cfg.hidden_bias)
+    return family.spiking and (snn_cfg.neuron == "lif" or not snn_cfg.hidden_bias)
 
 
 def converted(run: Run) -> bool:
     """A run evaluated as the sigma-delta network converted from it (``--sigma-delta``)."""
-    return run.policy == "ann-sd"
+    return run.policy in kinds.CONVERSIONS
 
 
 def eval_backend(run: Run) -> str:
     if exportable(run):
         return "nir-ref fixed"
-    return "torch" if run.policy == "ann" else "torch (cuba with hidden biases: not on Lava)"
+    if not kinds.study_family(run.policy).spiking:
+        return "torch"
+    return "torch (cuba with hidden biases: not on Lava)"
 
 
 def _eval_job(run: Run, runs_dir: Path, study: StudyConfig) -> tuple[EvalJob, Path]:
@@ -185,12 +189,12 @@ def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyCo
         if r.eval_backend == "nir-ref fixed":
             cells.setdefault((r.track, r.env, r.policy, r.variant), []).append(r)
     chosen = [median_seed(rs) for rs in cells.values()]
-    kinds = {r.name: r.policy for r in records}
+    policies = {r.name: r.policy for r in records}
     todo: list[tuple[str, WorkerRequest]] = []
     for r in chosen:
         run_dir = runs_dir / r.name
         job = EvalJob(str(run_dir), study.deploy_episodes, study.eval_seed, str(run_dir / DEPLOY_DIR),
-                      "lava-sim", "fixed", sigma_delta=kinds[r.name] == "ann-sd")  # fmt: skip
+                      "lava-sim", "fixed", sigma_delta=policies[r.name] in kinds.CONVERSIONS)  # fmt: skip
         if _stale(job, [run_dir / DEPLOY_DIR / "deploy.json"]):
             todo.append((r.name, job))
     # a deployment that left the reference still wrote its record: it shows as not bit-exact

@@ -57,6 +57,7 @@ from snnkart.report.study_record import (
     StudySettings,
     WallClock,
 )
+from snnkart.rl import kinds
 from snnkart.rl.config import TrainConfig, load_config
 
 if sys.version_info >= (3, 11):
@@ -101,10 +102,10 @@ def load_study(path: Path) -> StudyConfig:
     return study
 
 
-TRAINED_AS = {"ann-sd": "ann"}
+TRAINED_AS = {c.name: c.trained_as for c in kinds.CONVERSIONS.values()}
 """Study policy kinds trained as another kind: ``ann-sd`` is a ReLU ANN run, converted to a
 sigma-delta network (``snnkart export --nir RUN --sigma-delta``) when it is evaluated."""
-KIND_SETS = {"ann-sd": ["ann.activation=relu"]}
+KIND_SETS = {c.name: list(c.sets) for c in kinds.CONVERSIONS.values()}
 """Settings a study policy kind implies (before the study's own)."""
 
 

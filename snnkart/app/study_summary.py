@@ -12,6 +12,7 @@ import statistics
 from typing import Any
 
 from snnkart.report.study_record import CellSummary, RunRecord, Spread
+from snnkart.rl import kinds
 
 ORIGINAL = {
     # kart-simulator's headline table (one run per cell, as quoted in issue 17):
@@ -62,8 +63,8 @@ def summarise(records: list[RunRecord], study: Any) -> list[CellSummary]:
             env_steps=sum(r.steps for r in rs),
         ))  # fmt: skip
     for i, entry in enumerate(out):
-        if entry.policy == "snn":
-            ann = next((e for e in out if e.policy == "ann"
+        if kinds.compared_to_baseline(entry.policy):
+            ann = next((e for e in out if e.policy == kinds.BASELINE
                         and (e.track, e.env, e.variant) == (entry.track, entry.env, entry.variant)),
                        None)  # fmt: skip
             out[i] = dataclasses.replace(entry, snn_pct_of_ann=pct_of_ann(ann, entry))

@@ -31,6 +31,7 @@ class LavaLayer:
     bias_mant: np.ndarray
     bias_exp: int
     weight: np.ndarray | None
+    recurrent: np.ndarray | None = None  # a Dense from the layer's spikes back to its input
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ def lava_layers(
                 bias_mant=np.zeros(layer.size) if i == 0 else layer.bias.astype(np.float64),
                 bias_exp=0,
                 weight=None if i == 0 else layer.weight.astype(np.float64),
+                recurrent=None if layer.recurrent is None else layer.recurrent.astype(np.float64),
             )
             for i, layer in enumerate(chain.layers)
         )
@@ -73,6 +75,7 @@ def lava_layers(
             bias_mant=q.bias_mant.astype(np.int32),
             bias_exp=q.bias_exp,
             weight=None if q.weight is None else q.weight.astype(np.int32),
+            recurrent=None if q.recurrent is None else q.recurrent.astype(np.int32),
         )
         for q in fixed.layers
     )

@@ -15,6 +15,7 @@ Network (L = layers - 1 Dense synapses, window W = T + L):
 
     HostBridge.a_out -> LIFReset_0 -> Dense_1 -> LIFReset_1 -> ... -> LIFReset_{L}
     every LIFReset_i.s_out -> HostBridge.s_in{i}      (the spike raster, read back per window)
+    a recurrent layer: LIF_i.s_out -> Dense (its recurrent weights) -> LIF_i.a_in   (one step late)
 
 with ``LIFReset(reset_interval=W, reset_offset=(i + 1) % W)``, or for a stateful policy
 (``LavaSpec.persist``) plain ``LIF`` processes (the same bit-accurate arithmetic, never reset):
@@ -178,6 +179,13 @@ class LavaNetwork(BridgedNetwork):
             self.lifs[i - 1].s_out.connect(dense.s_in)
             dense.a_out.connect(self.lifs[i].a_in)
             self.dense.append(dense)
+        for i, layer in enumerate(spec.layers):  # recurrent synapses: s_out -> Dense -> a_in
+            if layer.recurrent is not None:
+                kwargs = {"num_weight_bits": 8, "weight_exp": 0} if fixed else {}
+                loop = Dense(weights=layer.recurrent, name=f"recurrent{i}", **kwargs)
+                self.lifs[i].s_out.connect(loop.s_in)
+                loop.a_out.connect(self.lifs[i].a_in)
+                self.dense.append(loop)
         self._start(bridge, fixed)
 
     def window(self, current: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ syn_gain are exactly 1 and leak exactly 0, and the update is ``v = beta v + I`` 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -58,6 +58,8 @@ class SpikingLayer:
     v_reset: np.ndarray  # (n,)
     alpha: np.ndarray | None = None  # (n,) current decay of a CubaLIF; None: no current state
     syn_gain: np.ndarray | None = None  # (n,) CubaLIF input gain
+    recurrent: np.ndarray | None = None  # (n, n) float32: the cycle neuron -> synapse -> neuron
+    recurrent_node: str | None = None  # NIR node name of that synapse (Linear or Affine)
 
     @property
     def size(self) -> int:
@@ -110,9 +112,16 @@ class ChainNetwork:
 
     @property
     def fan_out(self) -> tuple[int, ...]:
-        """Synapses each spike of a layer drives (next layer, or the readout)."""
+        """Synapses each spike of a layer drives (next layer, or the readout, and its own
+        recurrent synapse)."""
         nxt = [layer.size for layer in self.layers[1:]]
-        return (*nxt, self.n_out)
+        rec = [0 if layer.recurrent is None else layer.size for layer in self.layers]
+        return tuple(a + b for a, b in zip((*nxt, self.n_out), rec, strict=True))
+
+    @property
+    def recurrent(self) -> bool:
+        """Some layer feeds its own spikes back (a cycle in the NIR graph)."""
+        return any(layer.recurrent is not None for layer in self.layers)
 
 
 def _array(node: Any, name: str, field: str) -> np.ndarray:
@@ -206,7 +215,8 @@ def chain_from_graph(graph: Any, dt: float, discretisation: str = "euler") -> Ch
         raise UnsupportedGraphError(f"the time step dt must be positive, got {dt}")
 
     nodes = graph.nodes
-    order = _chain_order(graph)
+    cycles = _recurrent_synapses(graph)
+    order = _chain_order(graph, set(cycles.values()))
     body = order[1:-1]
     n_in = int(np.prod(np.asarray(nodes[order[0]].input_type["input"])))
     scale = None
@@ -223,6 +233,7 @@ def chain_from_graph(graph: Any, dt: float, discretisation: str = "euler") -> Ch
         n_out = int(np.asarray(nodes[body[-1]].weight).shape[0])
         li = _leaky_readout(li_name, nodes[li_name], n_out, dt, discretisation)
     layers, readout = _layers(nodes, body, n_in, dt, discretisation)
+    layers = [_with_recurrence(layer, nodes, cycles) for layer in layers]
     if scale is not None and scale.shape not in ((1,), (n_in,)):
         raise UnsupportedGraphError(f"Scale after the input has shape {scale.shape}")
     return ChainNetwork(
@@ -270,15 +281,57 @@ def _per_neuron(
     return out
 
 
-def _chain_order(graph: Any) -> list[str]:
-    """The node names from the one Input to the Output, checked to form a single chain of
-    supported nodes."""
+def _recurrent_synapses(graph: Any) -> dict[str, str]:
+    """``{neuron: synapse}`` for every cycle ``neuron -> synapse -> neuron`` through an Affine
+    or Linear whose only input and only output is that neuron (NIR's recurrence, as snnTorch's
+    ``RLeaky`` export and snnkart's ``rsnn`` kind write it)."""
     import nir
 
-    nodes = graph.nodes
     succ: dict[str, list[str]] = {}
+    pred: dict[str, list[str]] = {}
     for src, dst in graph.edges:
         succ.setdefault(src, []).append(dst)
+        pred.setdefault(dst, []).append(src)
+    cycles = {}
+    for name, node in graph.nodes.items():
+        if not isinstance(node, (nir.Affine, nir.Linear)):
+            continue
+        ins, outs = pred.get(name, []), succ.get(name, [])
+        if len(ins) == 1 and outs == ins and isinstance(graph.nodes[ins[0]], (nir.LIF, nir.IF)):
+            cycles[ins[0]] = name
+    return cycles
+
+
+def _with_recurrence(
+    layer: SpikingLayer, nodes: dict[str, Any], cycles: dict[str, str]
+) -> SpikingLayer:
+    """``layer`` with the weights of its recurrent synapse, if it has one."""
+    name = cycles.get(layer.neuron)
+    if name is None:
+        return layer
+    weight, bias = _synapse(name, nodes[name])
+    if weight.shape != (layer.size, layer.size):
+        raise UnsupportedGraphError(
+            f"recurrent synapse {name!r} of {layer.neuron!r} has shape {weight.shape}, not "
+            f"{(layer.size, layer.size)}"
+        )
+    # An Affine's bias arrives every step whatever the spikes (snnTorch's RLeaky writes one):
+    # it is the same current as a bias on the feed-forward synapse, so it is folded there.
+    folded = (layer.bias.astype(np.float32) + bias).astype(np.float32)
+    return replace(layer, bias=folded, recurrent=weight, recurrent_node=name)
+
+
+def _chain_order(graph: Any, recurrent: set[str] | frozenset[str] = frozenset()) -> list[str]:
+    """The node names from the one Input to the Output, checked to form a single chain of
+    supported nodes; ``recurrent``: the synapses of cycles (:func:`_recurrent_synapses`),
+    which are not on the chain."""
+    import nir
+
+    nodes = {k: v for k, v in graph.nodes.items() if k not in recurrent}
+    succ: dict[str, list[str]] = {}
+    for src, dst in graph.edges:
+        if src not in recurrent and dst not in recurrent:
+            succ.setdefault(src, []).append(dst)
     supported = (
         nir.Input, nir.Output, nir.Affine, nir.Linear, nir.LIF, nir.IF, nir.CubaLIF, nir.LI,
         nir.Scale,
@@ -303,7 +356,10 @@ def _chain_order(graph: Any) -> list[str]:
                 f"node {order[-1]!r} feeds {nxt}; only feed-forward chains are supported"
             )
         if nxt[0] in order:
-            raise UnsupportedGraphError(f"recurrent edge into {nxt[0]!r}; only chains run")
+            raise UnsupportedGraphError(
+                f"recurrent edge {order[-1]!r} -> {nxt[0]!r}; a cycle runs only as a neuron's "
+                "own recurrent synapse (neuron -> Affine/Linear -> the same neuron)"
+            )
         order.append(nxt[0])
     if len(order) != len(nodes):
         missing = sorted(set(nodes) - set(order))
@@ -345,7 +401,7 @@ def _layers(
                 "expected LIF, IF or CubaLIF"
             )
         params = _neuron(neuron_name, neuron, weight.shape[0], dt, discretisation)
-        layers.append(SpikingLayer(name, neuron_name, weight, bias, **params))
+        layers.append(SpikingLayer(name, neuron_name, weight, bias, **params))  # type: ignore[arg-type]
     if not layers:
         raise UnsupportedGraphError("the graph has no spiking layer (LIF, IF or CubaLIF)")
     return layers, readout

@@ -64,6 +64,7 @@ class FixedLayer:
     du: int
     dv: int
     input_max: int = HOST_CURRENT_MAX  # largest |a_in| that keeps u inside 24 bits
+    recurrent: np.ndarray | None = None  # (n, n) int64 even: the recurrent Dense, same scale
 
     @property
     def effective_alpha(self) -> float:
@@ -191,6 +192,12 @@ def quantize(chain: ChainNetwork) -> FixedPointNetwork:
         du = current_decay(None if layer.alpha is None else float(layer.alpha[0]))
         a_max = (HOST_CURRENT_MAX * (du + 1)) // DECAY_UNITY
         if i == 0:
+            if layer.recurrent is not None:
+                raise UnsupportedGraphError(
+                    f"LIF node {layer.neuron!r} is fed by the host and has a recurrent synapse "
+                    f"({layer.recurrent_node!r}); at the host current's scale (4096 / threshold) "
+                    "its weights do not fit Lava's 8 bits: put recurrence on a later layer"
+                )
             vth0 = min(VTH_HOST, a_max // 2)
             if vth0 < 1:
                 raise UnsupportedGraphError(
@@ -206,8 +213,12 @@ def quantize(chain: ChainNetwork) -> FixedPointNetwork:
 
 
 def _quantize_dense(layer: SpikingLayer, theta: float, du: int, dv: int, a_max: int) -> FixedLayer:
-    """A layer fed by a Dense: 8-bit weights, 17-bit threshold, 13-bit bias (module docstring)."""
+    """A layer fed by a Dense: 8-bit weights, 17-bit threshold, 13-bit bias (module docstring).
+    A recurrent synapse is quantised with the feed-forward one, at one scale: both Dense
+    outputs add into the same current."""
     w = layer.weight.astype(np.float64)
+    if layer.recurrent is not None:
+        w = np.hstack([w, layer.recurrent.astype(np.float64)])
     wmax = float(np.abs(w).max())
     scale = WEIGHT_MAX / wmax if wmax > 0 else 1.0
     vth = int(np.rint(theta * scale))
@@ -228,9 +239,12 @@ def _quantize_dense(layer: SpikingLayer, theta: float, du: int, dv: int, a_max: 
             "and 24-bit current"
         )
     weight = (2 * np.rint(w * scale / 2)).astype(np.int64)
+    recurrent = None
+    if layer.recurrent is not None:
+        weight, recurrent = weight[:, : layer.weight.shape[1]], weight[:, layer.weight.shape[1] :]
     target = np.rint(layer.bias.astype(np.float64) * scale * 2**ACT_SHIFT)
     exp = 0
     while exp < 7 and np.abs(np.rint(target / 2**exp)).max(initial=0) > 4095:
         exp += 1
     mant = np.clip(np.rint(target / 2**exp), -4095, 4095).astype(np.int64)
-    return FixedLayer(scale, weight, mant, exp, vth, du, dv, a_max)
+    return FixedLayer(scale, weight, mant, exp, vth, du, dv, a_max, recurrent)

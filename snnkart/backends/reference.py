@@ -125,6 +125,7 @@ class Float32Chain(_Simulator):
         raster = np.zeros((T, offsets[-1]), dtype=bool)
         v = [np.zeros(n, dtype=np.float32) for n in self.sizes]
         syn = [np.zeros(n, dtype=np.float32) for n in self.sizes]
+        own = [np.zeros(n, dtype=bool) for n in self.sizes]  # each layer's spikes at t - 1
         for t in range(T):
             s_prev: np.ndarray | None = None
             for i in range(len(self.sizes)):
@@ -133,6 +134,9 @@ class Float32Chain(_Simulator):
                 else:
                     assert s_prev is not None
                     inp = self.weights[i] @ s_prev.astype(np.float32) + self.biases[i]
+                rec = self.chain.layers[i].recurrent
+                if rec is not None:  # its own spikes of the step before
+                    inp = inp + rec @ own[i].astype(np.float32)
                 alpha, syn_gain = self.alpha[i], self.syn_gain[i]
                 if alpha is not None and syn_gain is not None:  # CubaLIF: a current first
                     syn[i] = alpha * syn[i] + (
@@ -148,7 +152,7 @@ class Float32Chain(_Simulator):
                 s = v[i] - self.theta[i] > 0
                 v[i][s] = self.v_reset[i][s]
                 raster[t, offsets[i] : offsets[i + 1]] = s
-                s_prev = s
+                s_prev = own[i] = s
         return raster
 
 
@@ -161,6 +165,9 @@ class _LavaPipeline(_Simulator):
     buffers: list[np.ndarray]  # what each Dense sends next step
     u: list[np.ndarray]
     v: list[np.ndarray]
+
+    recurrent: list[np.ndarray | None]  # each layer's recurrent Dense weights, or None
+    loops: list[np.ndarray]  # what each recurrent Dense sends next step
 
     def __init__(self, chain: ChainNetwork, num_steps: int, persist: bool = False) -> None:
         super().__init__(chain, num_steps)
@@ -177,8 +184,14 @@ class _LavaPipeline(_Simulator):
             self._zero()
 
     def _zero(self) -> None:
-        for x in (*self.u, *self.v, *self.buffers):
+        for x in (*self.u, *self.v, *self.buffers, *self.loops):
             x[...] = 0
+
+    def _loop(self, i: int, spikes: np.ndarray) -> None:
+        """Layer i's recurrent Dense integrates its own spikes of this row for the next."""
+        weight = self.recurrent[i]
+        assert weight is not None
+        self.loops[i] = weight[:, spikes].sum(axis=1)
 
     def _reset_due(self, i: int) -> bool:
         return not self.persist and self.t % self.W == (i + 1) % self.W
@@ -191,6 +204,12 @@ class _LavaPipeline(_Simulator):
         raise NotImplementedError
 
     def _window(self, current: np.ndarray) -> np.ndarray:
+        if self.chain.recurrent and not self.persist and self.t > 1:
+            raise ManifestError(
+                "a recurrent graph runs more than one window on Lava's pipeline only with its "
+                "state carried across env steps (manifest state_persists): the per-window "
+                "reset of a LIF does not clear what its recurrent Dense holds"
+            )
         K, T, offsets = len(self.sizes), self.T, self.offsets
         raster = np.zeros((self.W, offsets[-1]), dtype=bool)
         zero = np.zeros_like(current[0])
@@ -198,11 +217,16 @@ class _LavaPipeline(_Simulator):
             spikes = []
             for i in range(K):
                 a_in = (current[r] if r < T else zero) if i == 0 else self.buffers[i - 1]
+                if self.recurrent[i] is not None:  # both Dense outputs arrive at a_in
+                    a_in = a_in + self.loops[i]
                 s = self._lif(i, a_in)
                 raster[r, offsets[i] : offsets[i + 1]] = s
                 spikes.append(s)
             for i in range(1, K):  # each Dense sent its old buffer first, then integrates
                 self._deliver(i, spikes[i - 1])
+            for i in range(K):
+                if self.recurrent[i] is not None:
+                    self._loop(i, spikes[i])
             self.t += 1
         return raster
 
@@ -230,6 +254,8 @@ class Float32Stream(_LavaPipeline):
         self.u: list[np.ndarray] = []
         self.v = [np.zeros(n, dtype=f32) for n in self.sizes]
         self.buffers = [np.zeros(n, dtype=f32) for n in self.sizes[1:]]
+        self.recurrent = [layer.recurrent for layer in chain.layers]
+        self.loops = [np.zeros(n, dtype=f32) for n in self.sizes]
         self._zero()  # layer i > 0 gets its bias b_i from the first row on
 
     def _zero(self) -> None:
@@ -239,6 +265,11 @@ class Float32Stream(_LavaPipeline):
 
     def _deliver(self, i: int, spikes: np.ndarray) -> None:
         self.buffers[i - 1] = self.w32[i] @ spikes.astype(np.float32) + self.b32[i]
+
+    def _loop(self, i: int, spikes: np.ndarray) -> None:
+        weight = self.recurrent[i]
+        assert weight is not None
+        self.loops[i] = weight @ spikes.astype(np.float32)  # torch: fc(s_prev) + rec(s_own)
 
     def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
         self.v[i] = self.beta[i] * self.v[i] + a_in.astype(np.float32, copy=False)
@@ -266,6 +297,8 @@ class LavaFloatChain(_LavaPipeline):
         self.u = [np.zeros(n) for n in self.sizes]
         self.v = [np.zeros(n) for n in self.sizes]
         self.buffers = [np.zeros(n) for n in self.sizes[1:]]
+        self.recurrent = [None if p.recurrent is None else np.asarray(p.recurrent) for p in params]
+        self.loops = [np.zeros(n) for n in self.sizes]
 
     def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
         if self._reset_due(i):
@@ -303,6 +336,10 @@ class LavaFixedChain(_LavaPipeline):
         self.u = [np.zeros(n, dtype=np.int64) for n in self.sizes]
         self.v = [np.zeros(n, dtype=np.int64) for n in self.sizes]
         self.buffers = [np.zeros(n, dtype=np.int64) for n in self.sizes[1:]]
+        self.recurrent = [
+            None if layer.recurrent is None else np.asarray(layer.recurrent) for layer in q
+        ]
+        self.loops = [np.zeros(n, dtype=np.int64) for n in self.sizes]
 
     def _lif(self, i: int, a_in: np.ndarray) -> np.ndarray:
         if self._reset_due(i):

@@ -9,6 +9,7 @@ import typer
 
 from snnkart.cli.guard import fail
 from snnkart.errors import SnnkartError
+from snnkart.rl import kinds
 
 
 def export(
@@ -56,7 +57,7 @@ def export(
         options = Calibration(target, episodes)
         run = load_run(run_dir, checkpoint)
         path = out or run_dir / "policy.nir"
-        if sigma_delta or run.config.policy == "sdnn":
+        if sigma_delta or kinds.family(run.config.policy).graded:
             nir_path, manifest = export_sigma_delta(run, path, options)
         elif target is not None or episodes is not None:
             fail("--sigma-delta-target and --calibration-episodes are for sigma-delta exports")

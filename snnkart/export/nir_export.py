@@ -1,112 +1,43 @@
-"""Export a trained spiking actor to NIR (through snntorch's exporter) plus its manifest.
+"""Export a trained spiking actor to NIR plus its manifest.
 
-Sharp edges of snntorch 1.0 / nir 1.0.8 this module handles (found by experiment when the
-export was written; docs/deployment.md states the contract): a scalar beta or threshold breaks NIR type inference, so each
-layer's shared value is written as a per-neuron vector of equal values; the sample input has
-no batch dimension; ``reset_mechanism`` is not exported (NIR LIF resets to ``v_reset``), so only
-reset-to-zero networks are accepted. What a Lava target cannot run is refused with the reason.
+The policy builds its own graph (:meth:`snnkart.rl.policies.ActorCritic.nir_graph`: a LIF actor
+through snntorch's exporter, :mod:`snnkart.rl.lif_nir`; a recurrent one with its recurrent
+edges as cycles); this module writes it with the manifest of what NIR does not carry. Which
+writer a run takes is its kind's family (:mod:`snnkart.rl.kinds`): a sigma-delta actor is
+written by :mod:`snnkart.export.sigma_delta_export` (calibrated thresholds).
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import torch
 
 from snnkart.contract.encoding import RATE_RNG, obs_std
-from snnkart.contract.manifest import MANIFEST_SCHEMA, LayerSpec, Manifest, manifest_path
+from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, manifest_path
 from snnkart.envs.spec import spec_hash
 from snnkart.errors import ExportError
 from snnkart.io import atomic_path
+from snnkart.rl import kinds
 from snnkart.rl.checkpoint import versions
-from snnkart.rl.policies import SNNPolicy
+from snnkart.rl.lif_nir import NIR_DT, check_exportable
 from snnkart.rl.trained import LoadedRun
 
-NIR_DT = 1e-4
-"""snntorch's export convention: tau = NIR_DT / (1 - beta), r = tau / NIR_DT."""
-
-
-def _leaky(size: int, beta: float, threshold: float) -> torch.nn.Module:
-    import snntorch as snn
-
-    return snn.Leaky(
-        beta=torch.full((size,), beta),
-        threshold=torch.full((size,), threshold),
-        reset_mechanism="zero",
-        reset_delay=False,
-        init_hidden=True,
-    )
-
-
-def _synaptic(size: int, alpha: float, beta: float, threshold: float) -> torch.nn.Module:
-    import snntorch as snn
-
-    return snn.Synaptic(
-        alpha=torch.full((size,), alpha),
-        beta=torch.full((size,), beta),
-        threshold=torch.full((size,), threshold),
-        reset_mechanism="zero",
-        reset_delay=False,
-        init_hidden=True,
-    )
-
-
-def _neuron_module(spec: LayerSpec) -> torch.nn.Module:
-    """The snntorch module whose export is this layer's NIR node (LIF or CubaLIF)."""
-    if spec.alpha is None:
-        return _leaky(spec.size, spec.beta, spec.threshold)
-    return _synaptic(spec.size, spec.alpha, spec.beta, spec.threshold)
-
-
-def check_exportable(policy: Any) -> None:
-    """Refuse what Lava's LIF cannot run: subtractive reset, non-uniform decay or threshold."""
-    if not isinstance(policy, SNNPolicy):
-        raise ExportError(
-            f"only spiking policies can be exported to NIR for Lava; this run trained a "
-            f"{getattr(policy, 'kind', type(policy).__name__).upper()} policy (a ReLU ANN "
-            "converts to a sigma-delta network with --sigma-delta)"
-        )
-    for i, lif in enumerate(policy.snn.lifs, start=1):
-        name = f"lif{i}"
-        # The buffer, not the string attribute, is what forward() uses and a state dict sets.
-        if int(lif.reset_mechanism_val) != 1:
-            mechanism = {0: "subtract", 1: "zero", 2: "none"}.get(int(lif.reset_mechanism_val))
-            raise ExportError(
-                f"{name} uses reset_mechanism={mechanism!r}; Lava's LIF can only reset "
-                "the membrane to zero (NIR v_reset = 0); retrain with reset to zero"
-            )
-        beta = lif.beta.detach().reshape(-1)
-        thr = lif.threshold.detach().reshape(-1)
-        alpha = getattr(lif, "alpha", beta).detach().reshape(-1)  # Synaptic's current decay
-        if not all(torch.all(x == x[0]) for x in (beta, thr, alpha)):
-            raise ExportError(
-                f"{name} has per-neuron decay or threshold values; Lava's LIF has one decay, "
-                "one current decay and one threshold per population"
-            )
-        if not 0.0 <= float(alpha[0].clamp(0, 1)) < 1.0:
-            raise ExportError(
-                f"{name} has alpha = {float(alpha[0])}; the current decay must be < 1 (alpha = 1 "
-                "is an infinite NIR tau_syn)"
-            )
-        b = float(beta[0].clamp(0, 1))
-        if not 0.0 <= b < 1.0:
-            raise ExportError(
-                f"{name} has beta = {b}; beta must be < 1 (beta = 1 is an infinite NIR time "
-                "constant)"
-            )
-    for pname, p in policy.snn.named_parameters():
-        if not torch.isfinite(p).all():
-            raise ExportError(f"parameter {pname} contains NaN or infinite values")
+__all__ = ["NIR_DT", "ExportError", "check_exportable", "export_nir"]
 
 
 def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
-    """Write ``out`` (.nir) and its manifest; return both paths. A spiking run goes through
-    snntorch's exporter, a ``sdnn`` run through
+    """Write ``out`` (.nir) and its manifest; return both paths. A spiking run writes the graph
+    its policy builds; a sigma-delta run goes through
     :func:`snnkart.export.sigma_delta_export.export_sigma_delta` (calibrated thresholds)."""
-    if run.config.policy == "sdnn":
+    family = kinds.family(run.config.policy)
+    if not family.spiking:
+        raise ExportError(
+            f"only spiking policies can be exported to NIR for Lava; this run trained a "
+            f"{run.config.policy.upper()} policy ({family.phrase}; a ReLU ANN converts to a "
+            "sigma-delta network with --sigma-delta)"
+        )
+    if family.graded:
         from snnkart.export.sigma_delta_export import export_sigma_delta
 
         return export_sigma_delta(run, out)
@@ -115,27 +46,15 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
 
 def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
     import nir
-    from snntorch.export_nir import export_to_nir
 
     policy = run.policy
-    check_exportable(policy)
-    assert isinstance(policy, SNNPolicy)
-    actor = policy.snn
-    layers = _layer_specs(actor)
-    # The converter map: fc_i -> Affine "2(i-1)", lif_i -> LIF or CubaLIF "2i-1", readout ->
-    # Affine "2K".
-    modules: list[torch.nn.Module] = []
-    for fc, spec in zip(actor.fcs, layers, strict=True):
-        modules += [fc, _neuron_module(spec)]
-    net = torch.nn.Sequential(*modules, actor.readout).eval()
-    with torch.no_grad():
-        graph = export_to_nir(net, torch.zeros(actor.fcs[0].in_features))
-    _check_graph(graph, layers, readout_node=str(2 * len(layers)))
-
-    out = Path(out)
+    exported = policy.nir_graph()
+    graph, layers = exported.graph, exported.layers
     cfg = run.config
     rms = run.obs_rms
     spec = run.meta["env_spec"]
+    low = np.asarray(policy.obs_low, dtype=np.float64)  # type: ignore[arg-type]
+    high = low + np.asarray(policy.obs_span, dtype=np.float64)  # type: ignore[arg-type]
     manifest = Manifest(
         schema=MANIFEST_SCHEMA,
         nir_file=out.name,
@@ -146,15 +65,15 @@ def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
         obs_mean=tuple(float(x) for x in rms.mean),
         obs_std=tuple(float(x) for x in obs_std(rms.var)),
         obs_clip=cfg.ppo.clip_obs,
-        obs_low=tuple(float(x) for x in policy.obs_low),
-        obs_high=tuple(float(x) for x in (policy.obs_low + policy.obs_span)),
-        readout_node=str(2 * len(layers)),
+        obs_low=tuple(float(x) for x in low),
+        obs_high=tuple(float(x) for x in high),
+        readout_node=exported.readout_node,
         action_mode=cfg.action_mode,
         env={**spec, "env_spec_hash": spec_hash(spec)},
         versions=versions(),
         encoding_rng=RATE_RNG if cfg.snn.encoding == "rate" else None,
         population=cfg.snn.population if cfg.snn.encoding == "population" else None,
-        state_persists=cfg.snn.stateful,
+        state_persists=policy.carries_state,
         track=run.track_record() if run.track is not None else None,
         training={
             "run": str(run.run_dir),
@@ -170,50 +89,3 @@ def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
     mpath = manifest_path(out)
     manifest.write(mpath)
     return out, mpath
-
-
-def _layer_specs(actor: Any) -> tuple[LayerSpec, ...]:
-    """Each spiking layer's NIR node name (``2i - 1`` in the exported chain), size, decay and
-    threshold, and a Synaptic layer's current decay (one per population, as Lava's LIF has)."""
-    return tuple(
-        LayerSpec(
-            str(2 * i + 1),
-            fc.out_features,
-            float(lif.beta.detach().reshape(-1)[0].clamp(0, 1)),
-            float(lif.threshold.detach().reshape(-1)[0]),
-            float(lif.alpha.detach().reshape(-1)[0].clamp(0, 1)) if hasattr(lif, "alpha") else None,
-        )
-        for i, (fc, lif) in enumerate(zip(actor.fcs, actor.lifs, strict=True))
-    )
-
-
-def _check_graph(graph: Any, layers: tuple[LayerSpec, ...], readout_node: str) -> None:
-    """The exported graph must be the expected chain with reset-to-zero LIF (or CubaLIF)
-    vectors whose time constants give back the trained decays."""
-    import nir
-
-    expected: dict[str, Any] = {"input": nir.Input, "output": nir.Output, readout_node: nir.Affine}
-    for spec in layers:
-        expected[spec.node] = nir.LIF if spec.alpha is None else nir.CubaLIF
-        expected[str(int(spec.node) - 1)] = (nir.Affine, nir.Linear)  # Linear: no bias
-    for name, kind in expected.items():
-        node = graph.nodes.get(name)
-        if not isinstance(node, kind):
-            raise ExportError(f"unexpected NIR graph from snntorch: node {name!r} is {node!r}")
-    for spec in layers:
-        name, size, beta, th = spec.node, spec.size, spec.beta, spec.threshold
-        node = graph.nodes[name]
-        tau = node.tau if spec.alpha is None else node.tau_mem
-        if tau.shape != (size,) or not np.all(node.v_reset == 0):
-            raise ExportError(f"NIR LIF {name}: expected {size} neurons resetting to 0")
-        beta_back = 1.0 - NIR_DT / tau
-        if not np.allclose(beta_back, beta, rtol=0, atol=1e-6) or not np.all(
-            node.v_threshold == th
-        ):
-            raise ExportError(f"NIR LIF {name}: time constants or thresholds do not round-trip")
-        if spec.alpha is not None and not np.allclose(
-            1.0 - NIR_DT / node.tau_syn, spec.alpha, rtol=0, atol=1e-6
-        ):
-            raise ExportError(f"NIR CubaLIF {name}: current time constants do not round-trip")
-        if not math.isfinite(float(np.max(tau))):
-            raise ExportError(f"NIR LIF {name}: infinite time constant (beta = 1)")

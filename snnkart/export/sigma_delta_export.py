@@ -18,7 +18,6 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
-import torch
 
 from snnkart.contract.encoding import normalise, obs_std
 from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, manifest_path
@@ -28,7 +27,6 @@ from snnkart.errors import ExportError
 from snnkart.export.calibrate import AffineLayers, calibrate
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import versions
-from snnkart.rl.policies import SDNNPolicy
 from snnkart.rl.sdnn import input_scale, layer_units
 from snnkart.rl.trained import LoadedRun
 
@@ -54,23 +52,10 @@ class Calibration:
 def affine_layers(run: LoadedRun) -> tuple[AffineLayers, str]:
     """The run's actor as float32 affine layers, and the block's ``origin``; refuses what is
     not a ReLU network."""
-    policy = run.policy
-    if isinstance(policy, SDNNPolicy):
-        linears, origin = policy.sdnn.affine_layers(), "sdnn"
-    elif policy.kind == "ann":
-        if run.config.ann.activation != "relu":
-            raise ExportError(
-                f"{run.run_dir} is a {run.config.ann.activation} ANN; only a ReLU ANN converts "
-                "to sigma-delta: train with --set ann.activation=relu"
-            )
-        actor = policy.actor
-        assert isinstance(actor, torch.nn.Module)
-        linears, origin = [m for m in actor.modules() if isinstance(m, torch.nn.Linear)], "ann-relu"
-    else:
-        raise ExportError(
-            f"{run.run_dir} is a spiking run; --sigma-delta converts a ReLU ANN run (train one "
-            "with --policy ann --set ann.activation=relu) or exports a --policy sdnn run"
-        )
+    try:
+        linears, origin = run.policy.relu_layers()
+    except ExportError as exc:
+        raise ExportError(f"{run.run_dir}: {exc}") from None
     weights = [m.weight.detach().numpy().astype(np.float32) for m in linears]
     biases = [m.bias.detach().numpy().astype(np.float32) for m in linears]
     for w in weights:

@@ -9,6 +9,9 @@ from snnkart.report.held_out import held_out_lines
 from snnkart.report.study_plots import CAPTION, KEYS, cell_label, plot_names, record_commit
 from snnkart.report.study_record import CellSummary, DeployedRun, Spread, StudyRecord
 
+ANN, SNN = "ann", "snn"
+"""The pair the learning table sets side by side with the original thesis's own numbers."""
+
 
 def _k(steps: float | None) -> str:
     return ">cap" if steps is None else f"{steps / 1000:.0f}k"
@@ -146,16 +149,16 @@ def _rows(env: str, by: dict[str, CellSummary], orig: dict[str, float] | None) -
         mark = _vs(s.median, orig[orig_key]) if orig else ""
         return spread_steps(s) + mark
 
-    snn = by.get("snn")
+    snn = by.get(SNN)
     pct = snn.snn_pct_of_ann if snn else None
     pct_text = "-" if pct is None else f"{pct:.1f} %"
     if orig and pct is not None:
         pct_text += _vs(pct, orig["snn_pct_of_ann"], lower_is_better=False)
-    row = [env, cell("ann", "first_finish_step", "ann_first"),
-           cell("snn", "first_finish_step", "snn_first"),
-           cell("ann", "steps_to_finishes", "ann_300"), cell("snn", "steps_to_finishes", "snn_300"),
-           pct_text, spread_pct(by["ann"].eval_success_rate) if "ann" in by else "-",
-           spread_pct(by["snn"].eval_success_rate) if "snn" in by else "-",
+    row = [env, cell(ANN, "first_finish_step", "ann_first"),
+           cell(SNN, "first_finish_step", "snn_first"),
+           cell(ANN, "steps_to_finishes", "ann_300"), cell(SNN, "steps_to_finishes", "snn_300"),
+           pct_text, spread_pct(by[ANN].eval_success_rate) if ANN in by else "-",
+           spread_pct(by[SNN].eval_success_rate) if SNN in by else "-",
            spread_count(snn.eval_spikes_per_step if snn else None)]  # fmt: skip
     lines = ["| " + " | ".join(row) + " |"]
     return lines

@@ -11,6 +11,7 @@ from typing import Any
 
 from snnkart.contract.deploy_record import StepCounts
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind, key, omit_if
+from snnkart.rl import kinds
 
 STUDY = RecordKind("study", 4, rerun="snnkart study")
 """v2 (issue 31): the study's data kind, and per run the evaluation's mean lap time and counts
@@ -147,7 +148,7 @@ class CellSummary:
     train_seconds: Spread
     env_steps: int
     snn_pct_of_ann: float | None = field(
-        default=None, metadata=omit_if(lambda cell: cell.policy != "snn")
+        default=None, metadata=omit_if(lambda cell: not kinds.compared_to_baseline(cell.policy))
     )
 
 

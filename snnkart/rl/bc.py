@@ -95,7 +95,7 @@ def _batches(
     rows count in the loss). Shuffled steps; for a stateful actor, shuffled windows (rows
     time-major, ``s * E + e``) with their zero initial state and ``starts``."""
     n = len(rec.obs)
-    if not getattr(policy, "stateful", False):
+    if not policy.carries_state:
         for idx in torch.randperm(n, generator=gen).split(batch_size):
             yield idx, {}, torch.ones(len(idx), dtype=torch.bool)
         return
@@ -131,7 +131,7 @@ def _accuracy(
 ) -> float | None:
     """Share of steps whose deterministic (argmax) action is the recorded one (discrete;
     None for continuous actions and stateful actors, whose action depends on the steps before)."""
-    if not policy.discrete or getattr(policy, "stateful", False):
+    if not policy.discrete or policy.carries_state:
         return None
     return float((policy.act_deterministic(obs, raw) == actions).float().mean().item())
 

@@ -17,8 +17,9 @@ from snnkart.envs.spec import env_spec
 from snnkart.envs.tracks import Track, TrackError
 from snnkart.rl.checkpoint import CheckpointError, check_compatible, load_checkpoint
 from snnkart.rl.config import TrainConfig, read_run_config
+from snnkart.rl.kinds import policy_for
 from snnkart.rl.normalise import RunningMeanStd
-from snnkart.rl.policies import ActorCritic, policy_for
+from snnkart.rl.policies import ActorCritic
 from snnkart.rl.rollout import Progress
 from snnkart.rl.run_dir import checkpoint_path, checkpoint_track, trained_config
 

@@ -10,124 +10,24 @@ beta and one threshold per layer, membranes reset at every env step, no recurren
 
 from __future__ import annotations
 
-import itertools
-from dataclasses import dataclass
-
-import gymnasium as gym
 import numpy as np
 import torch
 from torch import nn
-from torch.distributions import Categorical, Normal
 
-from snnkart.contract.encoding import population_centres
-from snnkart.envs.base import KartEnv
-from snnkart.rl.config import ANNConfig, SNNConfig, TrainConfig
+from snnkart.contract.encoding import population_centres, rate_probabilities, rate_spikes
+from snnkart.errors import ExportError
+from snnkart.rl.actor_critic import ActorCritic, BufferNeeds, PolicyOutput, mlp
+from snnkart.rl.lif_nir import NIRGraph, lif_graph
 from snnkart.rl.sdnn import SigmaDeltaActor, changed_share, message_proxy
 from snnkart.rl.sdnn_config import SDNNConfig
-from snnkart.rl.spiking import SpikingActor, layer_init
+from snnkart.rl.sections import ANNConfig, SNNConfig
+from snnkart.rl.spiking import SpikingActor
 from snnkart.rl.stateful import state_size, stream_sequence, stream_step
 from snnkart.rl.stateful_lif import fused_stream_sequence
 
 BETA_MAX = 0.999
 """Upper clamp of a learnable beta: beta = 1 would export an infinite NIR time constant."""
 THRESHOLD_MIN = 1e-3
-
-
-ACTIVATIONS: dict[str, type[nn.Module]] = {"tanh": nn.Tanh, "relu": nn.ReLU}
-"""The hidden activations an MLP may have, by their ``ann.activation`` name."""
-
-
-def mlp(sizes: list[int], out_std: float, activation: str = "tanh") -> nn.Sequential:
-    """Linear -> activation -> ... -> Linear, the last layer initialised with ``out_std``."""
-    layers: list[nn.Module] = []
-    for a, b in itertools.pairwise(sizes[:-1]):
-        layers += [layer_init(nn.Linear(a, b)), ACTIVATIONS[activation]()]
-    layers.append(layer_init(nn.Linear(sizes[-2], sizes[-1]), std=out_std))
-    return nn.Sequential(*layers)
-
-
-@dataclass
-class PolicyOutput:
-    action: torch.Tensor
-    log_prob: torch.Tensor
-    entropy: torch.Tensor
-    value: torch.Tensor
-    input_spikes: torch.Tensor | None  # rate encoding: the sampled input trains [B, T, n_in]
-    rates: torch.Tensor | None  # SNN: mean firing rate per layer [n_layers]
-    state: torch.Tensor | None = None  # stateful SNN: the actor's state after this step
-
-
-class ActorCritic(nn.Module):
-    """Common part: action distribution, critic, observation scaling for the actor."""
-
-    kind = "base"
-    critic: nn.Module
-
-    def __init__(
-        self, obs_dim: int, action_dim: int, discrete: bool, init_log_std: float = -0.5
-    ) -> None:
-        super().__init__()
-        self.obs_dim = obs_dim
-        self.action_dim = action_dim
-        self.discrete = discrete
-        if not discrete:
-            self.log_std = nn.Parameter(torch.full((action_dim,), float(init_log_std)))
-
-    def actor_output(
-        self, obs: torch.Tensor, raw_obs: torch.Tensor, input_spikes: torch.Tensor | None
-    ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor | None]:
-        """Logits (discrete) or action means (continuous), plus SNN extras."""
-        raise NotImplementedError
-
-    def value(self, obs: torch.Tensor) -> torch.Tensor:
-        return self.critic(obs).squeeze(-1)
-
-    def distribution(self, out: torch.Tensor) -> Categorical | Normal:
-        if self.discrete:
-            return Categorical(logits=out, validate_args=False)
-        return Normal(out, self.log_std.exp().expand_as(out), validate_args=False)
-
-    def forward(
-        self,
-        obs: torch.Tensor,
-        raw_obs: torch.Tensor,
-        action: torch.Tensor | None = None,
-        input_spikes: torch.Tensor | None = None,
-    ) -> PolicyOutput:
-        """``obs`` is normalised (critic, ANN actor); ``raw_obs`` is the env's observation."""
-        out, spikes, rates = self.actor_output(obs, raw_obs, input_spikes)
-        return self.output(out, obs, action, spikes, rates)
-
-    def output(
-        self,
-        out: torch.Tensor,
-        obs: torch.Tensor,
-        action: torch.Tensor | None,
-        spikes: torch.Tensor | None,
-        rates: torch.Tensor | None,
-        state: torch.Tensor | None = None,
-    ) -> PolicyOutput:
-        """The action distribution of the actor's ``out``, a sample of it unless ``action`` is
-        given, its log-probability, entropy and the critic's value of ``obs``."""
-        dist = self.distribution(out)
-        if action is None:
-            action = dist.sample()
-        log_prob = dist.log_prob(action)
-        entropy = dist.entropy()
-        if not self.discrete:
-            log_prob, entropy = log_prob.sum(-1), entropy.sum(-1)
-        return PolicyOutput(action, log_prob, entropy, self.value(obs), spikes, rates, state)
-
-    @torch.no_grad()
-    def act_deterministic(
-        self, obs: torch.Tensor, raw_obs: torch.Tensor, input_spikes: torch.Tensor | None = None
-    ) -> torch.Tensor:
-        out, _, rates = self.actor_output(obs, raw_obs, input_spikes)
-        self.last_rates = None if rates is None else rates.detach()  # the side panel's
-        return out.argmax(-1) if self.discrete else out
-
-    def clamp_parameters(self) -> None:
-        """Keep learnable neuron parameters in their valid range (after an optimiser step)."""
 
 
 class ANNPolicy(ActorCritic):
@@ -143,6 +43,15 @@ class ANNPolicy(ActorCritic):
         sizes = [obs_dim, *cfg.hidden]
         self.actor = mlp([*sizes, action_dim], out_std=0.01, activation=cfg.activation)
         self.critic = mlp([*sizes, 1], out_std=1.0, activation=cfg.activation)
+        self.activation = cfg.activation
+
+    def relu_layers(self) -> tuple[list[nn.Linear], str]:
+        if self.activation != "relu":
+            raise ExportError(
+                f"a {self.activation} ANN; only a ReLU ANN converts to sigma-delta: train with "
+                "--set ann.activation=relu"
+            )
+        return [m for m in self.actor.modules() if isinstance(m, nn.Linear)], "ann-relu"
 
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
         return self.actor(obs), None, None
@@ -223,6 +132,45 @@ class SNNPolicy(ActorCritic):
                 if self.snn.cuba:
                     lif.alpha.clamp_(0.0, BETA_MAX)
 
+    def buffer_needs(self) -> BufferNeeds:
+        return BufferNeeds(input_spikes=self.cfg.encoding == "rate")
+
+    def penalty_weights(self, progress: float) -> dict[str, float]:
+        """``rate_reg``: the firing-rate penalty, ramped up over ``snn.rate_reg_warmup``."""
+        weight = self.cfg.rate_reg
+        if self.cfg.rate_reg_warmup > 0.0:
+            weight *= min(1.0, progress / self.cfg.rate_reg_warmup)
+        return {"rate_reg": weight} if weight > 0.0 or self.cfg.rate_reg_warmup else {}
+
+    def penalties(
+        self, out: PolicyOutput, obs: torch.Tensor, previous: torch.Tensor | None
+    ) -> dict[str, torch.Tensor]:
+        return {} if out.rates is None else {"rate_reg": out.rates.sum()}
+
+    def metrics(
+        self, stats: dict[str, list[np.ndarray]], weights: dict[str, float]
+    ) -> dict[str, float]:
+        record = {f"charts/{k}": w for k, w in weights.items() if self.cfg.rate_reg_warmup}
+        if stats.get("rates"):
+            for k, r in enumerate(np.mean(stats["rates"], axis=0)):
+                record[f"snn/firing_rate_layer{k + 1}"] = float(r)
+        return record
+
+    def input_spikes(self, raw: np.ndarray, rng: np.random.Generator) -> torch.Tensor | None:
+        """The deployment contract (:mod:`snnkart.contract.encoding`): numpy PCG64 seeded once
+        per predictor, one ``[T, n_in]`` draw per env step, so every backend sees these spikes."""
+        if self.cfg.encoding != "rate":
+            return None
+        low = self.obs_low.numpy()
+        p = rate_probabilities(raw, low, low + self.obs_span.numpy())
+        return torch.from_numpy(rate_spikes(rng, p, self.cfg.num_steps))[None]
+
+    def layer_sizes(self) -> tuple[int, ...]:
+        return tuple(self.cfg.hidden)
+
+    def nir_graph(self) -> NIRGraph:
+        return lif_graph(self.snn)
+
 
 class SDNNPolicy(ActorCritic):
     """Sigma-delta actor (:class:`SigmaDeltaActor`) with an MLP critic (tanh, ``ann.hidden``)
@@ -248,6 +196,9 @@ class SDNNPolicy(ActorCritic):
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
         return self.sdnn(obs)[0], None, None
 
+    def relu_layers(self) -> tuple[list[nn.Linear], str]:
+        return self.sdnn.affine_layers(), "sdnn"
+
     def message_proxy(self, obs: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:
         """:func:`message_proxy` of the hidden layers between ``previous`` and ``obs``."""
         return message_proxy(self.sdnn(obs)[1], self.sdnn(previous)[1])
@@ -259,6 +210,41 @@ class SDNNPolicy(ActorCritic):
         before = [self.sdnn.input_integers(previous), *self.sdnn(previous)[1]]
         return changed_share(now, before)
 
+    def buffer_needs(self) -> BufferNeeds:
+        return BufferNeeds(previous=True)
+
+    def penalty_weights(self, progress: float) -> dict[str, float]:
+        """``messages``: the message penalty, ramped up over ``sdnn.message_penalty_warmup``."""
+        weight = self.cfg.message_penalty
+        if self.cfg.message_penalty_warmup > 0.0:
+            weight *= min(1.0, progress / self.cfg.message_penalty_warmup)
+        return {"messages": weight}
+
+    def penalties(
+        self, out: PolicyOutput, obs: torch.Tensor, previous: torch.Tensor | None
+    ) -> dict[str, torch.Tensor]:
+        return {} if previous is None else {"messages": self.message_proxy(obs, previous)}
+
+    def rollout_stats(
+        self, out: PolicyOutput, obs: torch.Tensor, previous: torch.Tensor | None
+    ) -> dict[str, np.ndarray]:
+        assert previous is not None
+        return {"messages": self.message_rates(obs, previous).numpy()}
+
+    def metrics(
+        self, stats: dict[str, list[np.ndarray]], weights: dict[str, float]
+    ) -> dict[str, float]:
+        if not stats.get("messages"):
+            return {}
+        shares = np.mean(stats["messages"], axis=0)
+        record = {
+            "sdnn/message_penalty": weights["messages"],
+            "sdnn/message_rate_input": float(shares[0]),
+        }
+        for k, r in enumerate(shares[1:]):
+            record[f"sdnn/message_rate_layer{k + 1}"] = float(r)
+        return record
+
 
 class StatefulSNNPolicy(SNNPolicy):
     """A spiking actor whose membranes carry across env steps (``snn.stateful``): each env step
@@ -269,7 +255,7 @@ class StatefulSNNPolicy(SNNPolicy):
     before step 0, zeroed where an episode starts), and returns the new state in
     :attr:`PolicyOutput.state`."""
 
-    stateful = True
+    carries_state = True
 
     def state_size(self) -> int:
         return state_size(tuple(self.cfg.hidden))
@@ -279,7 +265,11 @@ class StatefulSNNPolicy(SNNPolicy):
         return torch.zeros(batch, self.state_size())
 
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
-        raise TypeError("a stateful policy acts from a state: call it with state=")
+        """The readout of one env step from an episode's start (a zero state)."""
+        out, rates, _ = stream_step(
+            self.snn, self.actor_input(obs, raw_obs), self.initial_state(obs.shape[0])
+        )
+        return out, None, rates
 
     def forward(  # type: ignore[override]
         self,
@@ -315,51 +305,19 @@ class StatefulSNNPolicy(SNNPolicy):
         self.last_rates = rates.detach()
         return (out.argmax(-1) if self.discrete else out), new
 
-
-def build_policy(
-    kind: str,
-    obs_dim: int,
-    action_dim: int,
-    discrete: bool,
-    ann: ANNConfig,
-    snn_cfg: SNNConfig,
-    obs_low: np.ndarray,
-    obs_high: np.ndarray,
-    init_log_std: float = -0.5,
-    sdnn_cfg: SDNNConfig | None = None,
-    clip_obs: float = 10.0,
-) -> ActorCritic:
-    if kind == "ann":
-        return ANNPolicy(obs_dim, action_dim, discrete, ann, init_log_std)
-    if kind == "snn":
-        return (StatefulSNNPolicy if snn_cfg.stateful else SNNPolicy)(
-            obs_dim, action_dim, discrete, snn_cfg, ann.hidden, obs_low, obs_high, init_log_std
-        )
-    if kind == "sdnn":
-        cfg = sdnn_cfg or SDNNConfig()
-        return SDNNPolicy(obs_dim, action_dim, discrete, cfg, ann.hidden, clip_obs, init_log_std)
-    raise ValueError(f"unknown policy kind {kind!r}; choose ann, snn or sdnn")
+    @torch.no_grad()
+    def act(
+        self,
+        obs: torch.Tensor,
+        raw_obs: torch.Tensor,
+        state: torch.Tensor | None,
+        input_spikes: torch.Tensor | None = None,
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        start = self.initial_state(obs.shape[0]) if state is None else state
+        return self.act_from(obs, raw_obs, start)
 
 
-def policy_for(cfg: TrainConfig, env: KartEnv) -> ActorCritic:
-    space = env.action_space
-    if isinstance(space, gym.spaces.Discrete):
-        discrete, action_dim = True, int(space.n)
-    elif isinstance(space, gym.spaces.Box):
-        discrete, action_dim = False, int(space.low.shape[0])
-    else:
-        raise TypeError(f"unsupported action space {space}")
-    obs_space = env.observation_space
-    return build_policy(
-        cfg.policy,
-        int(obs_space.low.shape[0]),
-        action_dim,
-        discrete,
-        cfg.ann,
-        cfg.snn,
-        obs_space.low.astype(np.float64),
-        obs_space.high.astype(np.float64),
-        cfg.ppo.init_log_std,
-        cfg.sdnn,
-        cfg.ppo.clip_obs,
-    )
+__all__ = [
+    "ANNPolicy", "ActorCritic", "BufferNeeds", "PolicyOutput", "SDNNPolicy", "SNNPolicy",
+    "SpikingActor", "StatefulSNNPolicy", "mlp",
+]  # fmt: skip

@@ -31,10 +31,10 @@ from snnkart.errors import RunError
 from snnkart.rl.bc import warm_start
 from snnkart.rl.buffer import Batch, RolloutBuffer, Sequences, compute_gae, minibatches
 from snnkart.rl.config import TrainConfig, read_run_config
+from snnkart.rl.kinds import policy_for
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
 from snnkart.rl.periodic_eval import PeriodicEval
-from snnkart.rl.policies import SDNNPolicy, policy_for
 from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
 from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
 from snnkart.rl.run_dir import RunDir, resolved_env_config
@@ -103,8 +103,7 @@ class Trainer:
             self.policy.parameters(), lr=p.learning_rate, eps=1e-5, foreach=True
         )
         self.ent_coef = p.ent_coef  # annealed with the learning rate when ppo.anneal_ent
-        self.rate_reg = cfg.snn.rate_reg if cfg.policy == "snn" else 0.0  # snn.rate_reg_warmup
-        self.message_penalty = cfg.sdnn.message_penalty if cfg.policy == "sdnn" else 0.0
+        self.penalty_weights = self.policy.penalty_weights(0.0)  # the kind's extra loss terms
         self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
         # behaviour cloning (cfg.bc) of a new run; a resumed run's checkpoint holds the clone
         self.bc = warm_start(
@@ -219,13 +218,12 @@ class Trainer:
         self.interrupted = self.interrupted_by is not None
 
     def _allocate(self) -> RolloutBuffer:
-        p, snn = self.cfg.ppo, self.cfg.snn
+        p, needs = self.cfg.ppo, self.policy.buffer_needs()
         discrete = self.policy.discrete
         return RolloutBuffer.allocate(
             p.rollout_steps, p.num_envs, self.spec["obs_dim"],
-            () if discrete else (self.policy.action_dim,), discrete, snn.num_steps,
-            rate=self.cfg.policy == "snn" and snn.encoding == "rate",
-            previous=self.cfg.policy == "sdnn",
+            () if discrete else (self.policy.action_dim,), discrete, self.cfg.snn.num_steps,
+            rate=needs.input_spikes, previous=needs.previous,
         )  # fmt: skip
 
     def _anneal(self) -> None:
@@ -234,13 +232,7 @@ class Trainer:
         if p.anneal_lr:
             self.optimizer.param_groups[0]["lr"] = frac * p.learning_rate
         self.ent_coef = frac * p.ent_coef if p.anneal_ent else p.ent_coef
-        snn, sdnn = self.cfg.snn, self.cfg.sdnn
-        self.rate_reg = snn.rate_reg if self.cfg.policy == "snn" else 0.0
-        if snn.rate_reg_warmup > 0.0:
-            self.rate_reg *= min(1.0, (1.0 - frac) / snn.rate_reg_warmup)
-        self.message_penalty = sdnn.message_penalty if self.cfg.policy == "sdnn" else 0.0
-        if sdnn.message_penalty_warmup > 0.0:
-            self.message_penalty *= min(1.0, (1.0 - frac) / sdnn.message_penalty_warmup)
+        self.penalty_weights = self.policy.penalty_weights(1.0 - frac)
 
     def _iteration(self, buf: RolloutBuffer, save_latest: bool = False) -> dict[str, Any] | None:
         """One iteration: rollout, GAE, update, record, checkpoint; None if an interrupt cut
@@ -336,12 +328,12 @@ class Trainer:
         v_loss = value_loss(out.value, mb.values, mb.returns, p.clip_coef, p.clip_vloss)
         entropy = out.entropy.mean()
         loss = pg_loss - self.ent_coef * entropy + p.vf_coef * v_loss
-        if self.rate_reg > 0.0 and out.rates is not None:
-            loss = loss + self.rate_reg * out.rates.sum()
         parts = {"policy": pg_loss, "value": v_loss, "entropy": entropy}
-        if mb.previous is not None and isinstance(self.policy, SDNNPolicy):
-            parts["messages"] = self.policy.message_proxy(mb.obs, mb.previous)
-            loss = loss + self.message_penalty * parts["messages"]
+        for name, term in self.policy.penalties(out, mb.obs, mb.previous).items():
+            parts[name] = term  # the kind's extra loss terms, weighted as it says
+            weight = self.penalty_weights.get(name, 0.0)
+            if weight > 0.0:
+                loss = loss + weight * term
         parts["loss"] = loss
         return parts, ratio, logratio
 
@@ -366,22 +358,12 @@ class Trainer:
             "charts/first_finish_step": self.progress.first_finish_step,
             "charts/learning_rate": self.optimizer.param_groups[0]["lr"],
             "charts/ent_coef": self.ent_coef,
-            **({"charts/rate_reg": self.rate_reg} if self.cfg.snn.rate_reg_warmup else {}),
             "charts/SPS": steps / (rollout_time + update_time),
             "charts/rollout_SPS": steps / rollout_time,
             "charts/update_seconds": update_time,
             **losses,
         }
-        if stats.rates:
-            rates = np.mean(stats.rates, axis=0)
-            for k, r in enumerate(rates):
-                record[f"snn/firing_rate_layer{k + 1}"] = float(r)
-        if stats.messages:
-            shares = np.mean(stats.messages, axis=0)
-            record["sdnn/message_penalty"] = self.message_penalty
-            record["sdnn/message_rate_input"] = float(shares[0])
-            for k, r in enumerate(shares[1:]):
-                record[f"sdnn/message_rate_layer{k + 1}"] = float(r)
+        record.update(self.policy.metrics(stats.kind, self.penalty_weights))
         return record
 
     def close(self) -> None:

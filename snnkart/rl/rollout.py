@@ -21,7 +21,7 @@ from snnkart.envs.tracks import Track
 from snnkart.rl.buffer import RolloutBuffer, Sequences
 from snnkart.rl.config import PPOConfig, TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
-from snnkart.rl.policies import ActorCritic, SDNNPolicy, StatefulSNNPolicy
+from snnkart.rl.policies import ActorCritic
 
 
 class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
@@ -80,9 +80,10 @@ class IterationStats:
     finishes: int = 0
     crashes: int = 0
     lap_times: list[float] = field(default_factory=list)
-    rates: list[np.ndarray] = field(default_factory=list)
-    messages: list[np.ndarray] = field(default_factory=list)
-    """sdnn: per step the share of neurons whose integer changed (input, hidden layers)."""
+    kind: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    """What the policy's kind records per step (:meth:`ActorCritic.rollout_stats`: ``rates``,
+    a spiking actor's mean firing rate per layer; ``messages``, a sigma-delta actor's share of
+    neurons whose integer changed), by name."""
 
 
 class Rollout:
@@ -135,7 +136,7 @@ class Rollout:
         self.reset_positions[:] = 0.0
         self.first_positions[:] = [kart.position for kart in self.karts]
         self.episode_start[:], self.fresh[:] = self.fresh, False
-        if isinstance(policy, StatefulSNNPolicy) and self.actor_state is None:
+        if policy.carries_state and self.actor_state is None:
             self.actor_state = policy.initial_state(E)
         self.start_state = self.actor_state
         extra: dict[str, Any] = {}
@@ -157,11 +158,12 @@ class Rollout:
             )
             if buf.spikes is not None and out.input_spikes is not None:
                 buf.spikes[step] = out.input_spikes.bool()
-            if out.rates is not None:
-                stats.rates.append(out.rates.numpy())
-            if buf.previous is not None and isinstance(policy, SDNNPolicy):
-                buf.previous[step] = torch.from_numpy(normalize_obs(obs_rms, p, self.previous_raw))
-                stats.messages.append(policy.message_rates(obs_t, buf.previous[step]).numpy())
+            previous = None
+            if buf.previous is not None:
+                previous = torch.from_numpy(normalize_obs(obs_rms, p, self.previous_raw))
+                buf.previous[step] = previous
+            for name, value in policy.rollout_stats(out, obs_t, previous).items():
+                stats.kind.setdefault(name, []).append(value)
             current = self.next_raw
             self._step(step, out.action.numpy(), policy, obs_rms, buf, progress, stats)
             done = buf.ends[step].numpy()[:, None] > 0

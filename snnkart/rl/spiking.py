@@ -11,8 +11,8 @@ import torch
 from snntorch import surrogate
 from torch import nn
 
-from snnkart.rl.config import SNNConfig
 from snnkart.rl.lif import fused_cuba_layer, fused_lif_layer
+from snnkart.rl.sections import SNNConfig
 
 
 def layer_init(layer: nn.Linear, std: float = math.sqrt(2.0), bias: float = 0.0) -> nn.Linear:

@@ -9,13 +9,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from snnkart.contract.encoding import rate_generator, rate_probabilities, rate_spikes
+from snnkart.contract.encoding import rate_generator
 from snnkart.envs.tracks import Track, embed_track
 from snnkart.rl.checkpoint import CheckpointError
 from snnkart.rl.config import TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import open_run
-from snnkart.rl.policies import ActorCritic, SNNPolicy, StatefulSNNPolicy
+from snnkart.rl.policies import ActorCritic
 from snnkart.rl.rollout import normalize_obs
 
 
@@ -34,10 +34,10 @@ class LoadedRun:
 
     def actor_widths(self) -> tuple[int, ...]:
         """The ANN actor's layer widths (obs, hidden..., actions), from its Linear layers."""
-        actor = self.policy.actor
-        modules = actor.modules() if isinstance(actor, torch.nn.Module) else []
+        actor = getattr(self.policy, "actor", None)
+        modules = actor.modules() if isinstance(actor, torch.nn.Sequential) else []
         linears = [m for m in modules if isinstance(m, torch.nn.Linear)]
-        if self.policy.kind != "ann" or not linears:
+        if not linears:
             raise CheckpointError(f"{self.run_dir} is a {self.policy.kind} run, not an ANN run")
         return (linears[0].in_features, *(m.out_features for m in linears))
 
@@ -77,34 +77,21 @@ class TorchPredictor:
     def predict(self, obs: np.ndarray) -> Any:
         raw = np.asarray(obs, dtype=np.float32)[None]
         norm = normalize_obs(self.run.obs_rms, self.run.config.ppo, raw)
-        spikes = None
-        if isinstance(self.policy, SNNPolicy) and self.policy.cfg.encoding == "rate":
-            # The deployment contract (snnkart.contract.encoding): numpy PCG64 seeded once per
-            # predictor, one [T, n_in] draw per env step, so every backend sees these spikes.
-            low = self.policy.obs_low.numpy()
-            p = rate_probabilities(raw[0], low, low + self.policy.obs_span.numpy())
-            spikes = torch.from_numpy(rate_spikes(self.rng, p, self.policy.cfg.num_steps))[None]
-        if isinstance(self.policy, StatefulSNNPolicy):
-            if self.state is None:
-                self.state = self.policy.initial_state(1)
-            action, self.state = self.policy.act_from(
-                torch.from_numpy(norm), torch.from_numpy(raw), self.state
+        spikes = self.policy.input_spikes(raw[0], self.rng)
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(self._next_seed())
+            action, self.state = self.policy.act(
+                torch.from_numpy(norm), torch.from_numpy(raw), self.state, spikes
             )
-        else:
-            with torch.random.fork_rng(devices=[]):
-                torch.manual_seed(self._next_seed())
-                action = self.policy.act_deterministic(
-                    torch.from_numpy(norm), torch.from_numpy(raw), spikes
-                )
         a = action[0].numpy()
         return int(a) if self.discrete else np.clip(a, -1.0, 1.0).astype(np.float32)
 
     def activity(self) -> list[tuple[str, float]]:
         """The SNN's firing rate per layer in the last ``predict`` (empty for an ANN)."""
         rates = getattr(self.policy, "last_rates", None)
-        if rates is None or not isinstance(self.policy, SNNPolicy):
+        sizes = self.policy.layer_sizes()
+        if rates is None or not sizes:
             return []
-        sizes = self.policy.cfg.hidden
         return [
             (f"layer {i + 1} ({n})", float(r))
             for i, (n, r) in enumerate(zip(sizes, rates, strict=True))
