@@ -6,7 +6,6 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -14,6 +13,7 @@ from snnkart.app.launch import RunSpec
 from snnkart.app.protocol import DataKind
 from snnkart.envs.tracks import short_name
 from snnkart.errors import UsageError
+from snnkart.rl import kinds
 
 STUDY_SCHEMA = "snnkart/study-config/v1"
 
@@ -28,11 +28,11 @@ class StudyConfig(BaseModel):
     data: DataKind = Field(description="tuning or reporting data (docs/results.md)")
     tracks: list[str] = Field(["small_S"], min_length=1, description="built-in names or files")
     envs: list[str] = Field(["grid", "gazebo", "steer"], min_length=1)
-    policies: list[Literal["ann", "snn", "sdnn", "ann-sd"]] = Field(
+    policies: list[str] = Field(
         ["ann", "snn"],
         min_length=1,
-        description="ann, snn (LIF; stateful with snn.stateful=true), sdnn (trained "
-        "sigma-delta), ann-sd (a ReLU ANN converted to sigma-delta with no retraining)",
+        description="registered kinds (snnkart.rl.kinds) or conversions: "
+        + kinds.study_choices_help(),
     )
     seeds: list[int] = Field([1, 2, 3, 4, 5], min_length=1)
     steps: int = Field(300_000, ge=1, description="env steps per run (the cap)")
@@ -58,6 +58,13 @@ class StudyConfig(BaseModel):
         description="an ablation: every cell once per named variant (its KEY=VALUE settings); "
         "a name 'POLICY:NAME' applies to that policy kind's cells only",
     )
+
+    @field_validator("policies")
+    @classmethod
+    def _known_policies(cls, policies: list[str]) -> list[str]:
+        for name in policies:
+            kinds.study_policy(name)
+        return policies
 
     @field_validator("variants")
     @classmethod

@@ -24,6 +24,7 @@ from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
 from snnkart.cli.track import track_app
 from snnkart.errors import CheckpointWriteError, SnnkartError, did_you_mean
+from snnkart.rl import kinds
 
 app = typer.Typer(
     name="snnkart",
@@ -169,7 +170,7 @@ def train(
         typer.Option("--track", "-t", help="big_S, small_S or a file", show_default="small_S"),
     ] = None,
     policy: Annotated[
-        str | None, typer.Option(help="ann, snn or sdnn (sigma-delta)", show_default="snn")
+        str | None, typer.Option(help=kinds.choices_help(), show_default="snn")
     ] = None,
     steps: Annotated[
         int | None,
@@ -194,7 +195,7 @@ def train(
     force: ForceOpt = False,
     wandb: Annotated[bool, typer.Option(help="also log to Weights & Biases (extra)")] = False,
 ) -> None:
-    """Train an ann, snn or sdnn policy with PPO; Ctrl-C saves a checkpoint, --resume continues."""
+    """Train a policy of any registered kind (--policy) with PPO; Ctrl-C saves a checkpoint, --resume continues."""
     from snnkart.app.train import run_training
     from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config

@@ -8,6 +8,7 @@ from typing import Annotated
 import typer
 
 from snnkart.cli.guard import fail, guard
+from snnkart.rl import kinds
 
 
 def sweep(
@@ -15,7 +16,7 @@ def sweep(
         list[str], typer.Option(help="KEY=uniform:LOW:HIGH | loguniform | choice:A,B")
     ],
     env: Annotated[str, typer.Option("--env", "-e")] = "grid",
-    policy: Annotated[str, typer.Option(help="ann, snn or sdnn")] = "ann",
+    policy: Annotated[str, typer.Option(help=kinds.choices_help())] = "ann",
     track: Annotated[str, typer.Option("--track", "-t")] = "small_S",
     steps: Annotated[int, typer.Option(help="env steps per trial")] = 100_000,
     samples: Annotated[int, typer.Option(help="trials")] = 8,

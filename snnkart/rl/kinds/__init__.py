@@ -121,6 +121,24 @@ BASELINE = "ann"
 """The kind every spiking kind's learning is set beside in the study tables (same widths)."""
 
 
+def study_policy(name: str) -> str:
+    """``name`` if it is a kind or a conversion a study can train; else a ValueError."""
+    if name not in REGISTRY and name not in CONVERSIONS:
+        choices = ", ".join((*REGISTRY, *CONVERSIONS))
+        raise ValueError(f"unknown policy {name!r}; choose one of {choices}")
+    return name
+
+
+def study_choices_help() -> str:
+    """Every study policy and what it is: the kinds, then the conversions."""
+    conversions = (
+        f"{c.name}: a {c.trained_as} trained with {', '.join(c.sets)} and run as "
+        f"{FAMILIES[c.family_name].phrase} with no retraining"
+        for c in CONVERSIONS.values()
+    )
+    return "; ".join((choices_help(), *conversions))
+
+
 def trained_as(policy: str) -> str:
     """The registered kind a study policy trains as (itself, or a conversion's kind)."""
     conversion = CONVERSIONS.get(policy)
