@@ -77,6 +77,9 @@ MUTANTS = {
     "idle-update-active": ["tests/test_sd_energy.py"],
     "sd-threshold-strict": ["tests/test_sigma_delta.py", "-k", "bit_exact"],
     "stateful-forgets": ["tests/test_stateful.py", "-k", "torch_policy_equals"],
+    "stateful-reference-resets": ["tests/test_stateful.py", "-k", "numpy_references_carry"],
+    "bc-wrong-rows": ["tests/test_bc.py", "-k", "own_rows"],
+    "reporting-set-unchecked": ["tests/test_study_protocol.py", "-k", "moves"],
 }
 
 
@@ -199,6 +202,35 @@ def apply(name: str) -> None:
         real_stream = snnkart.rl.policies.stream_step
         snnkart.rl.policies.stream_step = lambda snn, x, state: real_stream(  # type: ignore[assignment]
             snn, x, torch.zeros_like(state)
+        )
+    elif name == "stateful-reference-resets":
+        from snnkart.backends.reference import _LavaPipeline
+
+        real_window = _LavaPipeline._window
+
+        def window(self, current):  # type: ignore[no-untyped-def]
+            self._zero()  # every env step from zero state, as a per-window policy
+            return real_window(self, current)
+
+        _LavaPipeline._window = window  # type: ignore[method-assign]
+    elif name == "bc-wrong-rows":
+        import dataclasses
+
+        import snnkart.rl.bc
+
+        real_clone = snnkart.rl.bc.behaviour_clone
+
+        def clone(policy, obs_rms, cfg, rec):  # type: ignore[no-untyped-def]
+            shifted = dataclasses.replace(rec, actions=np.roll(rec.actions, 1))
+            return real_clone(policy, obs_rms, cfg, shifted)
+
+        snnkart.rl.bc.behaviour_clone = clone  # type: ignore[assignment]
+    elif name == "reporting-set-unchecked":
+        import snnkart.app.study_run
+
+        real_problem = snnkart.app.study_run.data_problem
+        snnkart.app.study_run.data_problem = lambda kind, seeds, tracks: (  # type: ignore[assignment]
+            real_problem(kind, seeds, tracks) if kind == "tuning" else None
         )
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")

@@ -232,11 +232,22 @@ def test_a_stateful_lif_deployments_report_json_has_the_state(tmp_path: Path) ->
             assert "membranes persist" in report["state"]["note"]
 
 
-def test_each_policy_kind_has_its_own_marker() -> None:
-    from snnkart.app.report_sweep import KINDS, policy_kind
+def test_a_runs_kind_comes_from_its_settings_and_each_has_its_own_marker() -> None:
     from snnkart.report.plots import MARKERS
+    from snnkart.report.study_record import StudySettings
 
-    assert set(MARKERS) == set(KINDS) and len(set(MARKERS.values())) == len(KINDS)
-    runs = [("snn", "t4_r0"), ("snn", "t4_r0.05"), ("snn", "stateful_t4"), ("sdnn", ""),
-            ("ann-sd", "")]  # fmt: skip
-    assert [policy_kind(p, v) for p, v in runs] == list(KINDS)
+    study = StudySettings(
+        schema="snnkart/study-config/v1", name="t", tracks=["small_S"], envs=["grid"],
+        policies=["snn", "rsnn", "sdnn", "ann-sd"], seeds=[1], steps=1, finishes=1,
+        eval_episodes=1, sets=["snn.num_steps=4"],
+        cells={"grid-snn": ["snn.rate_reg=0.0"]},
+        variants={"snn:stateful_named": [], "snn:t4_r0.05": ["snn.rate_reg=0.05"],
+                  "snn:carried": ["snn.stateful=true", "snn.num_steps=1"], "plain": []},
+    )  # fmt: skip
+    runs = [("snn", "stateful_named"), ("snn", "t4_r0.05"), ("snn", "carried"),
+            ("rsnn", "plain"), ("sdnn", "plain"), ("ann-sd", "plain")]  # fmt: skip
+    labels = [study.run_label("small_S", "grid", p, v) for p, v in runs]
+    assert labels == ["dense LIF", "sparse LIF", "stateful LIF", "recurrent LIF",
+                      "sigma-delta trained", "ANN converted"]  # fmt: skip
+    drawn = set(labels)
+    assert drawn <= set(MARKERS) and len({MARKERS[k] for k in drawn}) == len(drawn)

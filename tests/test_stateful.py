@@ -121,6 +121,39 @@ def test_an_episode_of_the_torch_policy_equals_the_float32_reference(
     assert reference.counts.spikes.min() > 0
 
 
+@pytest.mark.parametrize("precision", ["fixed", "float64"])
+def test_the_numpy_references_carry_the_state_across_env_steps(
+    precision: str, exported: tuple[Path, Path]
+) -> None:
+    """Without Lava: the fixed-point and float64 references of a stateful policy are not the
+    same reference restarted at every env step (the membranes and the spikes in flight carry),
+    and an episode's start (``reset``) forgets all of it."""
+    _, nir_path = exported
+    carried, restarted = NIRReference(nir_path, precision), NIRReference(nir_path, precision)
+    env = make_policy_env(carried.manifest, None, None)
+    differ = steps = 0
+    try:
+        obs, _ = env.reset(seed=3)
+        carried.reset()
+        first = None
+        for step in range(1, 200):
+            steps = step
+            window, out = carried.step(obs)
+            restarted.reset()
+            alone, _ = restarted.step(obs)
+            first = window.raster.copy() if first is None else first
+            differ += int(not np.array_equal(window.raster, alone.raster))
+            obs, _, terminated, truncated, _ = env.step(carried.codec.decode(out))
+            if terminated or truncated:
+                break
+        obs, _ = env.reset(seed=3)
+        carried.reset()
+        np.testing.assert_array_equal(carried.step(obs)[0].raster, first)
+    finally:
+        env.close()
+    assert differ >= steps // 4, (differ, steps)
+
+
 def _rollout_twice(tmp_path: Path, *extra: str) -> tuple[Trainer, RolloutBuffer]:
     """A stateful trainer after two rollouts (the second starts from the state the first
     left), episodes of at most 20 steps so that several start inside each rollout; three

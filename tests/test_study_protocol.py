@@ -53,13 +53,23 @@ def test_a_mix_of_tuning_and_reporting_data_is_refused_naming_it(
     assert refusal in str(info.value) and "\n" not in str(info.value)
 
 
-def test_a_setting_that_moves_a_run_onto_other_data_is_refused(tmp_path: Path) -> None:
+def test_a_setting_that_moves_a_run_onto_other_data_is_refused_both_ways(tmp_path: Path) -> None:
     study = load_study(_config(tmp_path, 'data = "tuning"\nenvs = ["grid"]\nsets = ["seed=150"]\n'))
     with pytest.raises(UsageError, match=r"small_S-grid-ann-s1: .* seed 150 is not tuning data"):
         plan(study)
     study = load_study(_config(tmp_path, 'data = "tuning"\nenvs = ["grid"]\n'
                                          'cells = {"grid-snn" = ["track=big_S", "seed=7"]}\n'))  # fmt: skip
     assert {r.spec.config.track for r in plan(study)} == {"small_S", "big_S"}  # both tuning
+    reporting = 'data = "reporting"\nenvs = ["grid"]\nseeds = [101]\n'
+    study = load_study(_config(tmp_path, reporting + 'sets = ["seed=5"]\n'))
+    with pytest.raises(UsageError, match=r"small_S-grid-ann-s101: .* seed 5 is not reporting data"):
+        plan(study)
+    study = load_study(_config(tmp_path, reporting + 'variants = {"snn:x" = ["track=big_S"]}\n'))
+    assert {r.spec.config.track for r in plan(study)} == {"small_S", "big_S"}  # a task track
+    study = load_study(_config(tmp_path, reporting + 'variants = {"snn:x" = '
+                                         '["track=benchmarks/tracks/ring.toml"]}\n'))  # fmt: skip
+    with pytest.raises(UsageError, match=r"small_S-grid-snn-x-s101: .* 'benchmarks/tracks/ring"):
+        plan(study)
 
 
 def test_each_kind_loads_its_own_data(tmp_path: Path) -> None:

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Any
 
@@ -44,32 +43,11 @@ def _read_sweep(path: Path) -> StudyRecord:
         raise ReportError(str(exc)) from None
 
 
-KINDS = ("dense LIF", "sparse LIF", "stateful LIF", "sigma-delta trained", "ANN converted")
-"""The policy kinds the accuracy-energy figure tells apart (one marker each)."""
-SD_POLICIES = {"sdnn": "sigma-delta trained", "ann-sd": "ANN converted"}
-"""The study policies that are sigma-delta, and their kinds."""
-RATE_PENALTY = re.compile(r"(^|[_-])r(0*[1-9][0-9.]*|0\.[0-9]*[1-9][0-9]*)($|[_-])")
-"""A variant name with a non-zero rate penalty (``t4_r0.05``, studies/sparsity.toml's names)."""
-
-
-def policy_kind(policy: str, variant: str) -> str:
-    """A run's kind (:data:`KINDS`) from its policy and variant: ``sdnn`` and ``ann-sd`` are the
-    sigma-delta kinds; a LIF run is stateful if its policy or variant says ``stateful``, sparse
-    if its variant says ``sparse`` or names a non-zero rate penalty (``r0.05``), else dense."""
-    if policy in SD_POLICIES:
-        return SD_POLICIES[policy]
-    names = f"{policy} {variant}".lower()
-    if "stateful" in names:
-        return "stateful LIF"
-    if "sparse" in names or RATE_PENALTY.search(variant.lower()):
-        return "sparse LIF"
-    return "dense LIF"
-
-
-def _point(run: RunRecord, chip: Profile, host: Profile) -> dict[str, Any]:
-    """One run priced: a sigma-delta run's counts with sd_terms, a LIF run's with snn_terms."""
+def _point(run: RunRecord, label: str, chip: Profile, host: Profile) -> dict[str, Any]:
+    """One run priced: a sigma-delta run's counts with sd_terms, a LIF run's with snn_terms;
+    ``label`` is its kind's name for it (:meth:`StudySettings.run_label`)."""
     base = {"point": run.variant or f"{run.env}-{run.policy}", "seed": run.seed}
-    kind = {"kind": policy_kind(run.policy, run.variant)}
+    kind = {"kind": label}
     if run.sigma_delta_counts is not None:
         sd = SigmaDeltaCounts.from_dict(run.sigma_delta_counts)
         return {**base, "num_steps": 1, "sizes": list(sd.sizes),
@@ -99,7 +77,7 @@ def sweep_section(
 ) -> dict[str, Any]:
     """A study's SNN runs, priced: each run's energy per inference on ``chip`` (host work on
     ``host``) from the counts of its evaluation on the reference (a sigma-delta run's with
-    :func:`snnkart.energy.sd_pricing.sd_terms`), with its kind (:func:`policy_kind`), and the
+    :func:`snnkart.energy.sd_pricing.sd_terms`), with its kind (:meth:`~snnkart.report.study_record.StudySettings.run_label`: from the settings it trained with), and the
     ANN's (:func:`_ann_shape`) on each digital profile. A run's point is its variant (its cell
     without variants)."""
     record = _read_sweep(path)
@@ -115,7 +93,8 @@ def sweep_section(
             f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "
             "run a study of spiking policies, e.g. studies/sparsity.toml"
         )
-    points = [_point(run, chip, host) for run in runs]
+    label = record.study.run_label
+    points = [_point(r, label(r.track, r.env, r.policy, r.variant), chip, host) for r in runs]
     shape, ann = _ann_shape(runs)
     ann_pj = {f"{shape} on {d.name}": total(ann_terms(ann, d)) for d in digital}
     envs = sorted({r.env for r in runs})

@@ -56,6 +56,7 @@ from snnkart.report.study_record import (
     StudyRecord,
     StudySettings,
     WallClock,
+    study_run_sets,
 )
 from snnkart.rl import kinds
 from snnkart.rl.config import TrainConfig, load_config
@@ -122,14 +123,13 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     variants = list(study.variants.items()) or [("", [])]
     runs = []
     for track, env, policy in itertools.product(study.tracks, study.envs, study.policies):
-        cell_sets = [*study.cells.get(f"{env}-{policy}", []),
-                     *study.cells.get(f"{short_name(track)}/{env}-{policy}", [])]  # fmt: skip
-        for (variant, variant_sets), seed in itertools.product(_of(variants, policy), study.seeds):
+        for (variant, _), seed in itertools.product(_of(variants, policy), study.seeds):
+            own = study_run_sets(study.sets, study.cells, study.variants,
+                                 (track, env, policy, variant))  # fmt: skip
             config = load_config(
                 overrides={"env": env, "policy": TRAINED_AS.get(policy, policy),
                            "track": track, "seed": seed, "total_steps": study.steps},
-                sets=["run.tensorboard=false", *KIND_SETS.get(policy, []), *study.sets,
-                      *cell_sets, *variant_sets],
+                sets=["run.tensorboard=false", *KIND_SETS.get(policy, []), *own],
             )  # fmt: skip
             name = "-".join([short_name(track), env, policy, *([variant] if variant else []),
                              f"s{seed}"])  # fmt: skip

@@ -120,7 +120,9 @@ def frontier(record: StudyRecord) -> dict[str, Any]:
                                 for b, _ in BOUNDS}}  # fmt: skip
         for (e, policy, variant), runs in cells.items():
             if e == env and all(_counts(r) for r in runs):
-                points.append(_point(env, policy, variant, runs, ann_success, ann, profiles))
+                kind = record.study.run_label(runs[0].track, env, policy, variant)
+                points.append({**_point(env, policy, variant, runs, ann_success, ann, profiles),
+                               "kind": kind})  # fmt: skip
     for env, info in envs.items():
         info["verdict"] = env_verdict(env, [p for p in points if p["env"] == env], info)
     return {"chip": PRIMARY, "proxies": list(PROXIES), "keep": KEEP,
@@ -159,13 +161,17 @@ def env_verdict(env: str, points: list[dict[str, Any]], info: dict[str, Any]) ->
             f"{b['ratio_int8']['p95']:.2g}x the int8 ANN (goal 1); in the way: {way}.")  # fmt: skip
 
 
-KIND_MARKERS = {"ann-sd": ("v", "ANN converted"), "sdnn": ("^", "sigma-delta trained"),
-                "stateful": ("s", "stateful LIF"), "snn": ("o", "LIF (dense, sparse)")}  # fmt: skip
-"""The figure's marker and label per policy kind."""
+KIND_MARKERS = {"ANN converted": ("v", "ANN converted"),
+                "sigma-delta trained": ("^", "sigma-delta trained"),
+                "stateful LIF": ("s", "stateful LIF"), "recurrent LIF": ("P", "recurrent LIF"),
+                "dense LIF": ("o", "LIF (dense, sparse)"),
+                "sparse LIF": ("o", "LIF (dense, sparse)")}  # fmt: skip
+"""The figure's marker and legend per kind label (:meth:`StudySettings.run_label`); dense and
+sparse LIF share one."""
 
 
-def _kind(p: dict[str, Any]) -> str:
-    return "stateful" if "stateful" in p["variant"] else p["policy"]
+def _kind(p: dict[str, Any]) -> tuple[str, str]:
+    return KIND_MARKERS.get(p["kind"], ("o", p["kind"]))
 
 
 def _row(p: dict[str, Any]) -> list[str]:
@@ -212,8 +218,9 @@ def frontier_figure(summary: dict[str, Any]) -> bytes:
     axes = list(np.atleast_1d(axes).ravel())
     for ax, env in zip(axes, envs, strict=True):
         info = summary["envs"][env]
-        for kind, (marker, label) in KIND_MARKERS.items():
-            pts = [p for p in summary["points"] if p["env"] == env and _kind(p) == kind]
+        mine = [p for p in summary["points"] if p["env"] == env]
+        for marker, label in dict.fromkeys([*KIND_MARKERS.values(), *map(_kind, mine)]):
+            pts = [p for p in mine if _kind(p) == (marker, label)]
             if pts:
                 ax.scatter([p["energy_nj"] for p in pts], [p["success"] for p in pts],
                            marker=marker, s=46, label=label, zorder=3)  # fmt: skip

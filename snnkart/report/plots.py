@@ -156,10 +156,11 @@ MARKERS = {
     "dense LIF": "o",
     "sparse LIF": "s",
     "stateful LIF": "D",
+    "recurrent LIF": "P",
     "sigma-delta trained": "^",
     "ANN converted": "v",
 }
-"""One marker per policy kind of a sweep's runs (:func:`snnkart.app.report_sweep.policy_kind`)."""
+"""One marker per policy kind of a sweep's runs (:meth:`snnkart.report.study_record.StudySettings.run_label`)."""
 
 
 def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile: str,

@@ -11,6 +11,7 @@ from typing import Any
 
 from snnkart.contract.deploy_record import StepCounts
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind, key, omit_if
+from snnkart.envs.tracks import short_name
 from snnkart.rl import kinds
 
 STUDY = RecordKind("study", 4, rerun="snnkart study")
@@ -20,6 +21,22 @@ per env step, per cell the chip's synaptic operations; v1 files load without the
 the study's ``eval_tracks`` and ``eval_track_episodes``, and per run ``held_out`` (its
 evaluation on each held-out track); v3 files load without them."""
 SCHEMA_FILE = Path(__file__).with_name("study.schema.json")
+
+
+def study_run_sets(
+    sets: list[str], cells: dict[str, list[str]], variants: dict[str, list[str]],
+    run: tuple[str, str, str, str],
+) -> list[str]:  # fmt: skip
+    """The settings a study gives the run ``(track, env, policy, variant)``, after its kind's:
+    the study's ``sets``, the cell's (``env-policy``, then ``track/env-policy``), the variant's
+    (a ``POLICY:NAME`` variant only for that policy). Planning a study and reading its record
+    both ask this, so a figure's kind is the settings a run trained with."""
+    track, env, policy, variant = run
+    cell = f"{env}-{policy}"
+    variant_sets = [s for name, vs in variants.items() if name.rpartition(":")[2] == variant
+                    and name.rpartition(":")[0] in ("", policy) for s in vs]  # fmt: skip
+    return [*sets, *cells.get(cell, []), *cells.get(f"{short_name(track)}/{cell}", []),
+            *variant_sets]  # fmt: skip
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -43,6 +60,22 @@ class StudySettings:
     sets: list[str] = field(default_factory=list)
     cells: dict[str, list[str]] = field(default_factory=dict)
     variants: dict[str, list[str]] = field(default_factory=dict)
+
+    def run_sets(self, track: str, env: str, policy: str, variant: str) -> list[str]:
+        """The study's own settings of one run (:func:`study_run_sets`)."""
+        return study_run_sets(self.sets, self.cells, self.variants, (track, env, policy, variant))
+
+    def run_label(self, track: str, env: str, policy: str, variant: str) -> str:
+        """What the run is called in figures (:func:`snnkart.rl.kinds.run_label`), from the
+        settings it was trained with."""
+        from snnkart.rl.config import load_config
+
+        sets = [*kinds.CONVERSIONS[policy].sets] if policy in kinds.CONVERSIONS else []
+        cfg = load_config(
+            overrides={"env": env, "policy": kinds.trained_as(policy), "track": track},
+            sets=[*sets, *self.run_sets(track, env, policy, variant)],
+        )
+        return kinds.run_label(policy, cfg)
 
     @property
     def variant_names(self) -> list[str]:

@@ -111,10 +111,14 @@ class Conversion:
     trained_as: str
     sets: tuple[str, ...]
     family_name: str
+    label: str
 
 
 CONVERSIONS: dict[str, Conversion] = {
-    c.name: c for c in (Conversion("ann-sd", "ann", ("ann.activation=relu",), "sigma_delta"),)
+    c.name: c
+    for c in (
+        Conversion("ann-sd", "ann", ("ann.activation=relu",), "sigma_delta", "ANN converted"),
+    )
 }
 
 BASELINE = "ann"
@@ -149,6 +153,13 @@ def study_family(policy: str) -> Family:
     """The family a study policy is evaluated in (a conversion's target family)."""
     conversion = CONVERSIONS.get(policy)
     return family(policy) if conversion is None else FAMILIES[conversion.family_name]
+
+
+def run_label(policy: str, cfg: Any) -> str:
+    """What a study run of ``policy`` trained with ``cfg`` is called in figures and tables: a
+    conversion's label, else its kind's (:attr:`~snnkart.rl.kinds.base.Kind.label`)."""
+    conversion = CONVERSIONS.get(policy)
+    return conversion.label if conversion is not None else kind(policy).label(cfg)
 
 
 def compared_to_baseline(policy: str) -> bool:

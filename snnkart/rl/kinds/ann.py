@@ -29,4 +29,5 @@ KIND = Kind(
         "grid": {"ppo": {"ent_coef": 0.005, "start_spread": 0.5}},
     },
     sections_used=("ann",),
+    label=lambda cfg: "ANN",
 )

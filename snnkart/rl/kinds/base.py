@@ -58,7 +58,9 @@ class Kind:
     - ``defaults`` and ``env_defaults``: config defaults for the kind, and for it on one env
       (applied only where the user set nothing; why each is what it is: docs/decisions.md);
     - ``check(cfg)``: raise ValueError naming a setting the kind cannot train with;
-    - ``sections_used``: the config sections its network reads (a run's record of its settings).
+    - ``sections_used``: the config sections its network reads (a run's record of its settings);
+    - ``label(cfg)``: what a run of the kind with ``cfg`` is called in figures and tables
+      (``"stateful LIF"``), from its settings, never from a run's or variant's name.
     """
 
     name: str
@@ -68,3 +70,4 @@ class Kind:
     env_defaults: dict[str, Defaults] = field(default_factory=dict)
     check: Callable[[Any], None] = _no_problem
     sections_used: tuple[str, ...] = ()
+    label: Callable[[Any], str] = lambda cfg: str(cfg.policy)

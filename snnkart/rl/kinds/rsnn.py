@@ -197,6 +197,7 @@ KIND = Kind(
     env_defaults=SNN.env_defaults,
     check=check,
     sections_used=("snn", "rsnn"),
+    label=lambda cfg: "recurrent LIF",
 )
 
 __all__ = ["KIND", "RSNNConfig", "RecurrentLIFPolicy"]

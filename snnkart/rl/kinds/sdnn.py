@@ -27,4 +27,5 @@ KIND = Kind(
     defaults={"ann": {"hidden": (64, 64)}},
     env_defaults=ann.KIND.env_defaults,
     sections_used=("sdnn",),
+    label=lambda cfg: "sigma-delta trained",
 )

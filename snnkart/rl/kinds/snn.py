@@ -19,6 +19,13 @@ def build(cfg: Any, space: PolicySpace) -> ActorCritic:
     )  # fmt: skip
 
 
+def label(cfg: Any) -> str:
+    """Stateful when membranes carry across env steps, sparse with a firing-rate penalty."""
+    if cfg.snn.stateful:
+        return "stateful LIF"
+    return "sparse LIF" if cfg.snn.rate_reg > 0 else "dense LIF"
+
+
 def check(cfg: Any) -> None:
     if cfg.snn.stateful:
         stateful_problem(cfg)
@@ -35,5 +42,6 @@ KIND = Kind(
         "grid": {"ppo": {"ent_coef": 0.0, "start_spread": 0.5}},
     },
     check=check,
+    label=label,
     sections_used=("snn",),
 )
