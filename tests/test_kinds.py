@@ -163,6 +163,44 @@ def test_the_recurrent_synapse_is_a_cycle_in_the_graph(recurrent: Path) -> None:
     assert chain.layers[1].recurrent_node == "rec3"
 
 
+def test_the_fused_recurrent_update_equals_the_stepped_one() -> None:
+    """The PPO update's layer-by-layer sequences (FusedRecurrentLIF) against the rows stepped
+    one by one in torch: the same readouts, gradients equal to float32 rounding, from a carried
+    state and across episode starts."""
+    import torch
+
+    from snnkart.rl.config import load_config
+
+    cfg = load_config(None, {"env": "grid", "policy": "rsnn"},
+                      ["snn.num_steps=2", "snn.hidden=[24, 16, 12]"])  # fmt: skip
+    torch.manual_seed(0)
+    policy = kinds.policy_for(cfg, cfg.make_env().unwrapped)
+    S, E = 12, 3
+    obs = torch.randn(S * E, policy.obs_dim) * 3
+    state = torch.zeros(E, policy.state_size())
+    with torch.no_grad():
+        for _ in range(4):
+            _, _, state = policy.stream_step(policy.actor_input(obs[:E], obs[:E]), state)
+    starts = torch.zeros(S, E)
+    starts[5, 1] = starts[0, 2] = 1.0
+    weights = torch.randn(S * E)
+    results = []
+    for fused in (False, True):
+        policy.cfg = policy.cfg.model_copy(update={"fused": fused})
+        policy.zero_grad()
+        out = policy(
+            obs, obs, action=torch.zeros(S * E, dtype=torch.long), state=state, starts=starts
+        )
+        ((out.log_prob * weights).sum() + out.rates.sum()).backward()
+        grads = {n: p.grad.clone() for n, p in policy.named_parameters() if p.grad is not None}
+        results.append((out.log_prob.detach(), grads))
+    (stepped, g_stepped), (fused_lp, g_fused) = results
+    assert torch.equal(stepped, fused_lp)
+    assert "recs.1.weight" in g_fused and g_fused["recs.1.weight"].abs().max() > 0
+    for name, grad in g_stepped.items():
+        torch.testing.assert_close(g_fused[name], grad, rtol=1e-4, atol=1e-6, msg=name)
+
+
 def test_the_reference_follows_the_torch_policy_with_its_recurrence(recurrent: Path) -> None:
     """The float32 reference drives as the torch policy does, env step by env step (its state
     carried); without the recurrent synapse the spikes change."""

@@ -17,6 +17,12 @@ loop (numba, float32, the same operations in the same order, no FMA contraction)
 back-propagates through time by hand with the same chain rule. Spikes are identical and
 gradients equal to float32 rounding (``tests/test_lif.py``, ``tests/test_stateful.py``).
 Export and deployment always use the snntorch modules.
+
+A recurrent layer (``rsnn``) adds its own spikes of the row before through a matrix,
+``I = x + R S[r - 1]``: :class:`FusedRecurrentLIF` runs the same membrane maths with that term
+inside the loop (it needs the whole row before, so a row is not one neuron's scalar recursion)
+and back-propagates into ``R``; its spikes equal the stepped modules', gradients to rounding
+(``tests/test_kinds.py``).
 """
 
 from __future__ import annotations
@@ -141,6 +147,119 @@ class FusedLIF(torch.autograd.Function):
             None,
             None,
         )
+
+
+@njit(cache=True, nogil=True)
+def _rec_forward(
+    current: np.ndarray, u0: np.ndarray, s0: np.ndarray, zero_at: np.ndarray, weight: np.ndarray,
+    beta: np.float32, threshold: np.float32, mem_pre: np.ndarray, spikes: np.ndarray,
+    before: np.ndarray,
+) -> None:  # fmt: skip
+    R, E, N = current.shape
+    zero = np.float32(0.0)
+    for e in range(E):
+        u = u0[e].copy()
+        s = s0[e].copy()
+        for t in range(R):
+            if zero_at[t, e]:
+                u[:] = zero
+                s[:] = zero
+            before[t, e] = s
+            for n in range(N):
+                rec = zero
+                for j in range(N):
+                    if s[j] != zero:
+                        rec += weight[n, j]
+                m = beta * u[n] + (current[t, e, n] + rec)
+                mem_pre[t, e, n] = m
+                if m - threshold > zero:
+                    spikes[t, e, n] = 1.0
+                    u[n] = m - m
+                else:
+                    spikes[t, e, n] = 0.0
+                    u[n] = m
+            s = spikes[t, e].copy()
+
+
+@njit(cache=True, nogil=True)
+def _rec_backward(
+    grad_spikes: np.ndarray, mem_pre: np.ndarray, spikes: np.ndarray, before: np.ndarray,
+    u0: np.ndarray, zero_at: np.ndarray, weight: np.ndarray, beta: np.float32,
+    threshold: np.float32, slope: np.float32, grad_current: np.ndarray, grad_weight: np.ndarray,
+) -> tuple[float, float]:  # fmt: skip
+    R, E, N = mem_pre.shape
+    one = np.float32(1.0)
+    grad_beta = 0.0
+    grad_thr = 0.0
+    for e in range(E):
+        grad_u = np.zeros(N, dtype=np.float32)
+        grad_s = np.zeros(N, dtype=np.float32)  # dL/dS_t through row t+1's recurrence
+        for t in range(R - 1, -1, -1):
+            for n in range(N):
+                m = mem_pre[t, e, n]
+                s = spikes[t, e, n]
+                surrogate = one / (slope * abs(m - threshold) + one) ** 2
+                grad_x = (grad_spikes[t, e, n] + grad_s[n] - grad_u[n] * m) * surrogate
+                grad_m = grad_u[n] * (one - s) + grad_x
+                grad_current[t, e, n] = grad_m
+                grad_thr -= grad_x
+                if zero_at[t, e]:
+                    grad_u[n] = 0.0
+                else:
+                    prior = (
+                        u0[e, n] if t == 0 else mem_pre[t - 1, e, n] * (one - spikes[t - 1, e, n])
+                    )
+                    grad_beta += grad_m * prior
+                    grad_u[n] = beta * grad_m
+            grad_s[:] = 0.0
+            for n in range(N):
+                g = grad_current[t, e, n]
+                if g != 0.0:
+                    for j in range(N):
+                        if before[t, e, j] != 0.0:
+                            grad_weight[n, j] += g
+                    if not zero_at[t, e]:
+                        for j in range(N):
+                            grad_s[j] += weight[n, j] * g
+    return grad_beta, grad_thr
+
+
+class FusedRecurrentLIF(torch.autograd.Function):
+    """Spikes ``[R, E, N]`` of a reset-to-zero LIF layer whose input at row r is ``current[r]``
+    plus ``weight @ S[r - 1]`` (its own spikes one row late), from the membrane ``u0`` and the
+    spikes ``s0`` ``[E, N]`` (constants: the stored state), both zeroed where ``zero_at``
+    ``[R, E]``."""
+
+    @staticmethod
+    def forward(  # type: ignore[override]
+        ctx: Any, current: torch.Tensor, u0: torch.Tensor, s0: torch.Tensor,
+        zero_at: torch.Tensor, weight: torch.Tensor, beta: torch.Tensor,
+        threshold: torch.Tensor, slope: float,
+    ) -> torch.Tensor:  # fmt: skip
+        cur = current.detach().contiguous().numpy()
+        start, first = (t.detach().contiguous().numpy() for t in (u0, s0))
+        mask = zero_at.contiguous().numpy()
+        w = weight.detach().contiguous().numpy()
+        mem_pre, spikes, before = np.empty_like(cur), np.empty_like(cur), np.empty_like(cur)
+        b, thr = np.float32(beta.item()), np.float32(threshold.item())
+        _rec_forward(cur, start, first, mask, w, b, thr, mem_pre, spikes, before)
+        ctx.arrays = (mem_pre, spikes, before, start, mask, w)
+        ctx.params = (b, thr, np.float32(slope), beta.shape, threshold.shape)
+        return torch.from_numpy(spikes)
+
+    @staticmethod
+    def backward(ctx: Any, grad_spikes: torch.Tensor) -> tuple[Any, ...]:  # type: ignore[override]
+        mem_pre, spikes, before, start, mask, w = ctx.arrays
+        b, thr, slope, beta_shape, thr_shape = ctx.params
+        grad = grad_spikes.contiguous().numpy()
+        grad_current, grad_weight = np.empty_like(grad), np.zeros_like(w)
+        g_beta, g_thr = _rec_backward(grad, mem_pre, spikes, before, start, mask, w, b, thr,
+                                      slope, grad_current, grad_weight)  # fmt: skip
+        return (
+            torch.from_numpy(grad_current), None, None, None, torch.from_numpy(grad_weight),
+            torch.tensor(g_beta, dtype=torch.float32).reshape(beta_shape),
+            torch.tensor(g_thr, dtype=torch.float32).reshape(thr_shape), None,
+        )  # fmt: skip
 
 
 def lif_rows(

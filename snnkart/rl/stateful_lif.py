@@ -13,25 +13,33 @@ kernel every LIF kind trains through; the spikes are those of the stepped snntor
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import torch
 
-from snnkart.rl.lif import lif_rows
+from snnkart.rl.lif import FusedRecurrentLIF, lif_rows
 from snnkart.rl.stateful import split_state
 
 
 def fused_stream_sequence(
-    actor: Any, x: torch.Tensor, state: torch.Tensor, starts: torch.Tensor
-) -> tuple[torch.Tensor, torch.Tensor, None]:
+    actor: Any, x: torch.Tensor, state: torch.Tensor, starts: torch.Tensor,
+    loops: Sequence[torch.nn.Linear] = (),
+) -> tuple[torch.Tensor, torch.Tensor, None]:  # fmt: skip
     """:func:`snnkart.rl.stateful.stream_sequence` layer by layer (module docstring): the
     readouts ``[S * E, n_out]`` and the mean firing rates ``[K]``; no final state (the update
-    does not need it)."""
+    does not need it). With ``loops`` (a recurrent actor: layer i >= 1's recurrent synapse is
+    ``loops[i - 1]``), ``state`` holds every layer's last-row spikes, and each recurrent layer
+    runs in :class:`snnkart.rl.lif.FusedRecurrentLIF`."""
     S, E = starts.shape
     sizes = tuple(fc.out_features for fc in actor.fcs)
     T, L = actor.T, len(sizes) - 1
     W, R = T + L, S * (T + L)
-    mems, prev = split_state(state.detach(), sizes)
+    if loops:
+        parts = list(torch.split(state.detach(), [*sizes, *sizes], dim=-1))
+        mems, prev = parts[: len(sizes)], parts[len(sizes) :]
+    else:
+        mems, prev = split_state(state.detach(), sizes)
     current = actor.fcs[0](x).reshape(S, 1, E, sizes[0]).expand(S, T, E, sizes[0])
     drain = current.new_zeros(S, L, E, sizes[0])
     inp = torch.cat([current, drain], dim=1).reshape(R, E, sizes[0])
@@ -46,6 +54,11 @@ def fused_stream_sequence(
             before = torch.cat([prev[i - 1].unsqueeze(0), spikes[-1][:-1]]) * in_flight
             inp = actor.fcs[i](before)
         beta = lif.beta.clamp(0, 1)
+        if i > 0 and loops:
+            weight = loops[i - 1].weight
+            spikes.append(FusedRecurrentLIF.apply(
+                inp, mems[i], prev[i], zero_at, weight, beta, lif.threshold, slope))  # fmt: skip
+            continue
         spikes.append(lif_rows(inp, beta, lif.threshold, slope, u0=mems[i], zero_at=zero_at))
     last = spikes[-1].reshape(S, W, E, sizes[-1])[:, L:].mean(1)
     out = actor.readout(last).reshape(S * E, -1)

@@ -21,8 +21,10 @@ Exported to NIR with each recurrent synapse as a cycle: ``lif_i -> rec_i (Linear
 NIR's convention for recurrence (snnTorch's ``RLeaky`` export writes the same shape), which the
 backends run with the recurrent Dense one step late.
 
-Sharp edges: training steps the rows one by one (no fused kernel: a layer's next row depends on
-its own spikes through a matrix), so it is slower than ``snn`` with ``snn.stateful``.
+The PPO update runs whole env sequences layer by layer (``snn.fused``, the default), each
+recurrent layer in :class:`snnkart.rl.lif.FusedRecurrentLIF` (the recurrence inside the loop);
+the rollout steps the rows one by one. Before that kernel the update stepped them too and
+trained at ~42 env steps/s on grid (against ~3,000 for ``snn`` with ``snn.stateful``).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from snnkart.rl.kinds.snn import KIND as SNN
 from snnkart.rl.lif_nir import NIRGraph, lif_graph
 from snnkart.rl.policies import ActorCritic, PolicyOutput, StatefulSNNPolicy
 from snnkart.rl.stateful_config import stateful_problem
+from snnkart.rl.stateful_lif import fused_stream_sequence
 
 
 class RSNNConfig(BaseModel):
@@ -123,6 +126,8 @@ class RecurrentLIFPolicy(StatefulSNNPolicy):
         x = self.actor_input(obs, raw_obs)
         if starts is None:
             out, rates, new = self.stream_step(x, state)
+        elif self.cfg.fused:  # the update: layer by layer, no state after (not needed)
+            out, rates, new = fused_stream_sequence(self.snn, x, state, starts, self.loops)
         else:  # env sequences, time-major: row s * E + e
             S, E = starts.shape
             xs = x.reshape(S, E, -1)
