@@ -124,6 +124,7 @@ class RecurrentLIFPolicy(StatefulSNNPolicy):
         if state is None:
             raise TypeError("a recurrent policy acts from a state: call it with state=")
         x = self.actor_input(obs, raw_obs)
+        new: torch.Tensor | None
         if starts is None:
             out, rates, new = self.stream_step(x, state)
         elif self.cfg.fused:  # the update: layer by layer, no state after (not needed)
