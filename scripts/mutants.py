@@ -200,8 +200,8 @@ def apply(name: str) -> None:
         import snnkart.rl.policies
 
         real_stream = snnkart.rl.policies.stream_step
-        snnkart.rl.policies.stream_step = lambda snn, x, state: real_stream(  # type: ignore[assignment]
-            snn, x, torch.zeros_like(state)
+        snnkart.rl.policies.stream_step = lambda snn, x, state, loops=(): real_stream(  # type: ignore[assignment]
+            snn, x, torch.zeros_like(state), loops
         )
     elif name == "stateful-reference-resets":
         from snnkart.backends.reference import _LavaPipeline

@@ -170,6 +170,7 @@ def test_the_fused_recurrent_update_equals_the_stepped_one() -> None:
     import torch
 
     from snnkart.rl.config import load_config
+    from snnkart.rl.stateful import stream_step
 
     cfg = load_config(None, {"env": "grid", "policy": "rsnn"},
                       ["snn.num_steps=2", "snn.hidden=[24, 16, 12]"])  # fmt: skip
@@ -180,7 +181,8 @@ def test_the_fused_recurrent_update_equals_the_stepped_one() -> None:
     state = torch.zeros(E, policy.state_size())
     with torch.no_grad():
         for _ in range(4):
-            _, _, state = policy.stream_step(policy.actor_input(obs[:E], obs[:E]), state)
+            x = policy.actor_input(obs[:E], obs[:E])
+            _, _, state = stream_step(policy.snn, x, state, policy.loops)
     starts = torch.zeros(S, E)
     starts[5, 1] = starts[0, 2] = 1.0
     weights = torch.randn(S * E)

@@ -195,7 +195,7 @@ def train(
     force: ForceOpt = False,
     wandb: Annotated[bool, typer.Option(help="also log to Weights & Biases (extra)")] = False,
 ) -> None:
-    """Train a policy of any registered kind (--policy) with PPO; Ctrl-C saves a checkpoint, --resume continues."""
+    """Train a policy of any registered kind with PPO; Ctrl-C checkpoints, --resume goes on."""
     from snnkart.app.train import run_training
     from snnkart.envs.tracks import load_track
     from snnkart.rl.config import load_config
@@ -367,8 +367,7 @@ def deploy(
         typer.Option(
             "--out",
             "-o",
-            help="directory for deploy.json (default: "
-            "deploy-BACKEND-PRECISION beside the NIR file)",
+            help="deploy.json's directory (default: deploy-BACKEND-PRECISION beside the NIR file)",
         ),
     ] = None,
     force: ForceOpt = False,

@@ -185,8 +185,18 @@ class ActorCritic(nn.Module):
         input_spikes: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor | None]:
         """The deterministic action (argmax or mean) and the state after it (None for an actor
-        that :attr:`carries_state` not)."""
-        return self.act_deterministic(obs, raw_obs, input_spikes), None
+        that :attr:`carries_state` not; from its :meth:`initial_state` when ``state`` is None)."""
+        if not self.carries_state:
+            return self.act_deterministic(obs, raw_obs, input_spikes), None
+        start = self.initial_state(obs.shape[0]) if state is None else state
+        return self.act_from(obs, raw_obs, start)
+
+    def act_from(
+        self, obs: torch.Tensor, raw_obs: torch.Tensor, state: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The deterministic action from ``state`` and the new state (a kind that
+        :attr:`carries_state`)."""
+        raise NotImplementedError(f"a {self.kind} policy carries no state")
 
     def layer_sizes(self) -> tuple[int, ...]:
         """The spiking layers' sizes whose firing rates :attr:`last_rates` holds (empty: not a

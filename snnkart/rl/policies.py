@@ -10,6 +10,8 @@ beta and one threshold per layer, membranes reset at every env step, no recurren
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import torch
 from torch import nn
@@ -256,9 +258,12 @@ class StatefulSNNPolicy(SNNPolicy):
     :attr:`PolicyOutput.state`."""
 
     carries_state = True
+    loops: Sequence[nn.Linear] = ()
+    """Each layer i >= 1's recurrent synapse (``loops[i - 1]``), or none (the recurrent kind,
+    :mod:`snnkart.rl.kinds.rsnn`, has them)."""
 
     def state_size(self) -> int:
-        return state_size(tuple(self.cfg.hidden))
+        return state_size(tuple(self.cfg.hidden), bool(self.loops))
 
     def initial_state(self, batch: int) -> torch.Tensor:
         """The state at an episode's start: zero membranes, no spikes in flight."""
@@ -267,7 +272,7 @@ class StatefulSNNPolicy(SNNPolicy):
     def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
         """The readout of one env step from an episode's start (a zero state)."""
         out, rates, _ = stream_step(
-            self.snn, self.actor_input(obs, raw_obs), self.initial_state(obs.shape[0])
+            self.snn, self.actor_input(obs, raw_obs), self.initial_state(obs.shape[0]), self.loops
         )
         return out, None, rates
 
@@ -285,10 +290,10 @@ class StatefulSNNPolicy(SNNPolicy):
         x = self.actor_input(obs, raw_obs)
         new: torch.Tensor | None
         if starts is None:
-            out, rates, new = stream_step(self.snn, x, state)
-        else:
+            out, rates, new = stream_step(self.snn, x, state, self.loops)
+        else:  # env sequences; the update's layer by layer (snn.fused)
             run = fused_stream_sequence if self.cfg.fused else stream_sequence
-            out, rates, new = run(self.snn, x, state, starts)
+            out, rates, new = run(self.snn, x, state, starts, self.loops)
         return self.output(out, obs, action, None, rates, new)
 
     @torch.no_grad()
@@ -299,22 +304,13 @@ class StatefulSNNPolicy(SNNPolicy):
         was = self.training
         self.eval()
         try:
-            out, rates, new = stream_step(self.snn, self.actor_input(obs, raw_obs), state)
+            out, rates, new = stream_step(
+                self.snn, self.actor_input(obs, raw_obs), state, self.loops
+            )
         finally:
             self.train(was)
         self.last_rates = rates.detach()
         return (out.argmax(-1) if self.discrete else out), new
-
-    @torch.no_grad()
-    def act(
-        self,
-        obs: torch.Tensor,
-        raw_obs: torch.Tensor,
-        state: torch.Tensor | None,
-        input_spikes: torch.Tensor | None = None,
-    ) -> tuple[torch.Tensor, torch.Tensor | None]:
-        start = self.initial_state(obs.shape[0]) if state is None else state
-        return self.act_from(obs, raw_obs, start)
 
 
 __all__ = [

@@ -35,11 +35,7 @@ def fused_stream_sequence(
     sizes = tuple(fc.out_features for fc in actor.fcs)
     T, L = actor.T, len(sizes) - 1
     W, R = T + L, S * (T + L)
-    if loops:
-        parts = list(torch.split(state.detach(), [*sizes, *sizes], dim=-1))
-        mems, prev = parts[: len(sizes)], parts[len(sizes) :]
-    else:
-        mems, prev = split_state(state.detach(), sizes)
+    mems, prev = split_state(state.detach(), sizes, bool(loops))
     current = actor.fcs[0](x).reshape(S, 1, E, sizes[0]).expand(S, T, E, sizes[0])
     drain = current.new_zeros(S, L, E, sizes[0])
     inp = torch.cat([current, drain], dim=1).reshape(R, E, sizes[0])

@@ -32,7 +32,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import torch
 from pydantic import BaseModel, ConfigDict, Field
 from torch import nn
 
@@ -40,9 +39,8 @@ from snnkart.errors import ExportError
 from snnkart.rl.kinds.base import Kind, PolicySpace
 from snnkart.rl.kinds.snn import KIND as SNN
 from snnkart.rl.lif_nir import NIRGraph, lif_graph
-from snnkart.rl.policies import ActorCritic, PolicyOutput, StatefulSNNPolicy
+from snnkart.rl.policies import ActorCritic, StatefulSNNPolicy
 from snnkart.rl.stateful_config import stateful_problem
-from snnkart.rl.stateful_lif import fused_stream_sequence
 
 
 class RSNNConfig(BaseModel):
@@ -75,89 +73,6 @@ class RecurrentLIFPolicy(StatefulSNNPolicy):
             nn.init.orthogonal_(rec.weight, recurrent_gain)
         self.recs = nn.ModuleList(recs)  # layer i >= 1's recurrent synapse is recs[i - 1]
         self.loops: list[nn.Linear] = recs
-
-    def state_size(self) -> int:
-        return 2 * sum(self.cfg.hidden)
-
-    def _split(self, state: torch.Tensor) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
-        sizes = list(self.cfg.hidden)
-        parts = list(torch.split(state, [*sizes, *sizes], dim=-1))
-        return parts[: len(sizes)], parts[len(sizes) :]
-
-    def stream_step(
-        self, x: torch.Tensor, state: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """One env step from ``state``: (readout, mean firing rate per layer, new state)."""
-        actor = self.snn
-        K, T = len(actor.lifs), actor.T
-        L = K - 1
-        mems, prev = self._split(state)
-        current = actor.fcs[0](x)
-        drain = torch.zeros_like(current)
-        read: list[torch.Tensor] = []
-        totals: list[Any] = [0.0] * K
-        for r in range(T + L):
-            spikes = []
-            for i, lif in enumerate(actor.lifs):
-                if i == 0:
-                    inp = current if r < T else drain
-                else:
-                    inp = actor.fcs[i](prev[i - 1]) + self.loops[i - 1](prev[i])
-                s, mems[i] = lif(inp, mems[i])
-                spikes.append(s)
-                totals[i] = totals[i] + s.mean()
-            prev = spikes
-            if r >= L:
-                read.append(spikes[-1])
-        out = actor.readout(torch.stack(read).mean(0))
-        return out, torch.stack(totals) / (T + L), torch.cat([*mems, *prev], dim=-1)
-
-    def forward(  # type: ignore[override]
-        self,
-        obs: torch.Tensor,
-        raw_obs: torch.Tensor,
-        action: torch.Tensor | None = None,
-        input_spikes: torch.Tensor | None = None,
-        state: torch.Tensor | None = None,
-        starts: torch.Tensor | None = None,
-    ) -> PolicyOutput:
-        if state is None:
-            raise TypeError("a recurrent policy acts from a state: call it with state=")
-        x = self.actor_input(obs, raw_obs)
-        new: torch.Tensor | None
-        if starts is None:
-            out, rates, new = self.stream_step(x, state)
-        elif self.cfg.fused:  # the update: layer by layer, no state after (not needed)
-            out, rates, new = fused_stream_sequence(self.snn, x, state, starts, self.loops)
-        else:  # env sequences, time-major: row s * E + e
-            S, E = starts.shape
-            xs = x.reshape(S, E, -1)
-            outs, all_rates = [], []
-            for s in range(S):
-                state = state * (1.0 - starts[s]).unsqueeze(-1)
-                o, r, state = self.stream_step(xs[s], state)
-                outs.append(o)
-                all_rates.append(r)
-            out, rates, new = torch.cat(outs), torch.stack(all_rates).mean(0), state
-        return self.output(out, obs, action, None, rates, new)
-
-    def actor_output(self, obs, raw_obs, input_spikes):  # type: ignore[no-untyped-def]
-        x = self.actor_input(obs, raw_obs)
-        out, rates, _ = self.stream_step(x, self.initial_state(obs.shape[0]))
-        return out, None, rates
-
-    @torch.no_grad()
-    def act_from(
-        self, obs: torch.Tensor, raw_obs: torch.Tensor, state: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        was = self.training
-        self.eval()
-        try:
-            out, rates, new = self.stream_step(self.actor_input(obs, raw_obs), state)
-        finally:
-            self.train(was)
-        self.last_rates = rates.detach()
-        return (out.argmax(-1) if self.discrete else out), new
 
     def nir_graph(self) -> NIRGraph:
         """The feed-forward chain of :func:`~snnkart.rl.lif_nir.lif_graph` plus, per layer
