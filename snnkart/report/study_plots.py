@@ -14,9 +14,20 @@ from typing import Any
 import numpy as np
 
 from snnkart.report.study_record import RunRecord, StudyRecord
+from snnkart.rl import kinds
 
-COLOURS = {"ann": "#1f77b4", "snn": "#d62728", "sdnn": "#2ca02c", "ann-sd": "#9467bd"}
-"""A colour per policy kind (every kind a study may train: StudyConfig.policies)."""
+PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
+           "#17becf")  # fmt: skip
+"""The study policies' colours, in the kinds registry's order (its kinds, then its
+conversions): ann blue, snn red, sdnn green, rsnn orange, ann-sd purple."""
+
+
+def colour(policy: str) -> str:
+    """``policy``'s colour: its place among the registered study policies, in :data:`PALETTE`."""
+    order = [*kinds.REGISTRY, *kinds.CONVERSIONS]
+    return PALETTE[order.index(policy) % len(PALETTE)]
+
+
 KEYS = {"finishes": "cumulative laps finished", "return": "mean episodic return"}
 """The figures per track: the curve's key and its axis label."""
 NCOLS = 3
@@ -97,7 +108,7 @@ def _legend_handles(record: StudyRecord, key: str) -> list[Any]:
     from matplotlib.lines import Line2D
 
     grey = "#555555"
-    handles = [Line2D([], [], color=COLOURS[p], lw=2, label=f"{p.upper()}: median, min–max band")
+    handles = [Line2D([], [], color=colour(p), lw=2, label=f"{p.upper()}: median, min–max band")
                for p in record.study.policies if any(r.policy == p for r in record.runs)]  # fmt: skip
     handles += [Line2D([], [], color=grey, lw=0.6, label="one seed"),
                 Line2D([], [], color=grey, ls="", marker="o", ms=3.5,
@@ -114,7 +125,7 @@ def _panel(ax: Any, record: StudyRecord, cell: tuple[str, str, str], key: str) -
     for policy in record.study.policies:
         runs = [r for r in record.runs if r.cell == (track, env, policy, variant)]
         if runs:
-            _band(ax, runs, key, COLOURS[policy], policy.upper())
+            _band(ax, runs, key, colour(policy), policy.upper())
     if key == "finishes":
         ax.axhline(record.study.finishes, color="grey", lw=0.8, ls=":")
     ax.set_title(cell_label(env, variant), fontsize=9)
