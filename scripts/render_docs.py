@@ -10,19 +10,21 @@ priced from ``docs/frontier/study.json`` (``snnkart study studies/frontier.toml`
 copied in), and its figure ``docs/frontier/frontier.png``. The published study tables
 (:data:`STUDIES`: the behaviour-cloning studies in ``docs/training.md``, the generalisation
 study in ``docs/tracks.md``) from their committed ``study.json``, each a reporting study run at
-a clean commit (``snnkart study studies/<name>.toml``; the record copied in).
+a clean commit (``snnkart study studies/<name>.toml``; the record copied in). The blocks' writers
+are in ``scripts/docs_blocks/`` (not installed with snnkart).
 ``tests/test_docs.py`` renders the pages again and fails if one differs.
 """
 
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from snnkart.app.pipeline import DEMO_SEED
-from snnkart.app.study_summary import ORIGINAL
-from snnkart.report.docs_block import (
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # docs_blocks/, beside this script
+
+from docs_blocks.docs_block import (
     BEGIN,
     END,
     RESULTS_TAG,
@@ -30,15 +32,19 @@ from snnkart.report.docs_block import (
     published_tags,
     replace_block,
 )
-from snnkart.report.frontier import frontier, frontier_block, frontier_figure, verdicts_block
-from snnkart.report.main_job_block import main_job_block
-from snnkart.report.study_blocks import (
+from docs_blocks.frontier_blocks import frontier_block, frontier_figure, verdicts_block
+from docs_blocks.main_job_block import main_job_block
+from docs_blocks.study_blocks import (
     cells_block,
     check_publishable,
     every_seed_block,
     regenerate_block,
     study_block,
 )
+
+from snnkart.app.pipeline import DEMO_SEED
+from snnkart.app.study_summary import ORIGINAL
+from snnkart.report.frontier import frontier
 from snnkart.report.study_plots import figure as study_figure
 from snnkart.report.study_record import CellSummary, StudyRecord
 
@@ -88,6 +94,12 @@ CELL_BLOCKS: dict[tuple[str, str], tuple[str, Callable[[CellSummary], bool]]] = 
         f"{GAZEBO_FIRST / 1000:.0f}k steps.",
         lambda c: c.env == "gazebo" and c.policy in ("snn", "sdnn"),
     ),
+    ("docs/results.md", "docs/results/recurrent.json"): (
+        "The recurrent LIF kind (`rsnn`) against the stateful LIF kind it extends, grid on "
+        "small_S, the same widths (64-64), budget (300k env steps, the same stop rule) and "
+        "reporting seeds on both sides.",
+        lambda c: True,
+    ),
 }
 """Tables of chosen cells: (page, its records joined by ", ") -> (intro, which cells)."""
 PUBLISHED = {
@@ -100,6 +112,7 @@ PUBLISHED = {
     "docs/bc/steer.json": "studies/bc-steer.toml",
     "docs/bc/gazebo.json": "studies/bc-gazebo.toml",
     "docs/frontier/study.json": "studies/frontier.toml",
+    "docs/results/recurrent.json": "studies/recurrent.toml",
 }
 """Every published study record and the config that makes it again (tests/test_docs.py checks
 that they agree and that every reporting config is here)."""

@@ -33,9 +33,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # docs_blocks/, beside this script
+
+from docs_blocks.docs_block import RESULTS_TAG, published_tags
+
 from snnkart.app.pipeline import DEMO_SEED, DEMO_TRACK
 from snnkart.app.protocol import FIRST_REPORTING_SEED, data_problem, is_tuning_track
-from snnkart.report.docs_block import RESULTS_TAG, published_tags
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = "benchmarks/results"

@@ -12,12 +12,16 @@ from __future__ import annotations
 import functools
 import re
 import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from snnkart.report.docs_block import published_tags
+# scripts/docs_blocks: the documents' writers, not installed with snnkart
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+
+from docs_blocks.docs_block import published_tags
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks/results"

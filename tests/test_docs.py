@@ -29,10 +29,9 @@ def test_the_energy_page_is_rendered_from_its_committed_report() -> None:
 def test_a_page_without_its_markers_is_refused() -> None:
     import pytest
 
-    from snnkart.report.docs_block import replace_block
-
+    render = _render_docs()
     with pytest.raises(ValueError, match="no generated block"):
-        replace_block("# Energy\n\nno markers here\n", "block")
+        render.replace_block("# Energy\n\nno markers here\n", "block")
 
 
 def test_the_bc_scratch_arm_repeats_the_small_s_runs() -> None:

@@ -21,7 +21,7 @@ import pytest
 from snnkart.backends.reference import NIRReference
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import AnnCounts, Network, SnnCounts, host_ops
-from snnkart.energy.pricing import Comparison, ann_terms, snn_terms, total
+from snnkart.energy.pricing import Comparison, ann_terms, terms, total
 from snnkart.energy.profiles import BUILTIN, load_profile, parse_profile
 from snnkart.errors import ProfileError
 
@@ -71,9 +71,9 @@ def test_counts_and_energy_of_a_hand_computed_network() -> None:
     # link (float64): T 2 x 4 currents x 64 bits in + 2 x 2 spike flags out = 516 bits x 20.3
     # host (fp32): 16 MACs x 4.6 + 16 adds x 0.9 + 5 mults x 3.7 = 106.5 pJ
     assert snn.link_bits == (512.0, 4.0)
-    assert total(snn_terms(snn, loihi, fp32)) == pytest.approx(1655.3 + 516 * 20.3 + 106.5)
+    assert total(terms(snn, loihi, fp32)) == pytest.approx(1655.3 + 516 * 20.3 + 106.5)
     # + the host's 22 weights x 32 bits = 11 64-bit reads from the 8 KB array (88 bytes), 10 pJ
-    assert total(snn_terms(snn, loihi, sram)) == pytest.approx(1655.3 + 10474.8 + 106.5 + 110)
+    assert total(terms(snn, loihi, sram)) == pytest.approx(1655.3 + 10474.8 + 106.5 + 110)
     ann = AnnCounts((3, 4, 2, 2))
     assert ann.macs == 24 and ann.parameters == 32
     # 24 MACs x 4.6 + (8 biases + 9 normalise + 1 argmax) x 0.9 + 3 x 3.7 = 137.7 pJ
@@ -191,7 +191,7 @@ def test_break_even_solves_for_the_spike_density() -> None:
     be = cmp.break_even()
     d = be["density"]
     # at the break-even density the SNN costs exactly what the ANN does
-    assert total(snn_terms(snn.scaled(d), truenorth, fp32)) == pytest.approx(cmp.energies()[1])
+    assert total(terms(snn.scaled(d), truenorth, fp32)) == pytest.approx(cmp.energies()[1])
     assert d > 1.0 and cmp.ratio() < 1.0
     # Loihi's clocked neuron updates can cost more than a small ANN whatever the spikes
     small = Comparison(snn, AnnCounts((3, 2, 2)), load_profile("loihi1"), fp32, fp32)

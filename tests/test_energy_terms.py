@@ -17,7 +17,7 @@ from snnkart.backends.reference import NIRReference
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.placement import Placement
-from snnkart.energy.pricing import Comparison, ann_terms, snn_terms, total, with_price
+from snnkart.energy.pricing import Comparison, ann_terms, terms, total, with_price
 from snnkart.energy.profiles import load_profile, memory_row
 from snnkart.errors import ProfileError
 
@@ -46,7 +46,7 @@ def test_each_side_reads_its_weights_from_the_array_that_holds_them(snn: SnnCoun
         return sum(t.count for t in terms if t.part == "memory")
 
     # fp32: the host's 6,932 bytes fit 8 KB, the ANN's 23,572 bytes need 32 KB
-    assert reads(snn_terms(snn, load_profile("loihi1"), fp32), "sram_read_8kb") == 1733 / 2
+    assert reads(terms(snn, load_profile("loihi1"), fp32), "sram_read_8kb") == 1733 / 2
     assert reads(ann_terms(ann, fp32), "sram_read_32kb") == 5893 / 2
     # int8: the ANN's 5,893 bytes fit 8 KB; an 8-bit weight is an eighth of a 64-bit read
     assert reads(ann_terms(ann, int8), "sram_read_8kb") == 5893 / 8
@@ -70,11 +70,11 @@ def test_placement_and_routing_by_hand(snn: SnnCounts) -> None:
     loihi = load_profile("loihi1")
     apart = dataclasses.replace(loihi, neurons_per_core=64, cores_per_tile=1)  # one tile a layer
     drained = dataclasses.replace(snn, overhead_spikes=(5.0, 1.0))  # fill/drain spikes travel too
-    routing = [t for t in snn_terms(drained, apart, load_profile("horowitz45_fp32")) if
+    routing = [t for t in terms(drained, apart, load_profile("horowitz45_fp32")) if
                t.part == "routing"]  # fmt: skip
     assert len(routing) == 1 and routing[0].price_pj == 3.5
     assert routing[0].count == pytest.approx(snn.spikes[0] + 5.0)  # 1 hop from core 0 to 1
-    kept = [t for t in snn_terms(snn, loihi, load_profile("horowitz45_fp32"))
+    kept = [t for t in terms(snn, loihi, load_profile("horowitz45_fp32"))
             if t.part == "routing"]  # fmt: skip
     assert [t.count for t in kept] == [0.0]  # both layers in one tile of four cores
 
@@ -94,7 +94,7 @@ def test_the_backend_counts_the_link_bits_the_energy_model_prices(
     assert backend.counts.chip_to_host_bits == 3 * 8 * 64
     if arithmetic == "fixed":  # the committed record is a fixed-point deployment
         assert snn.link_bits == (8 * 64 * 24, 8 * 64)
-    link = [t for t in snn_terms(snn, load_profile("loihi1"), load_profile("horowitz45_fp32"))
+    link = [t for t in terms(snn, load_profile("loihi1"), load_profile("horowitz45_fp32"))
             if t.part == "host link"]  # fmt: skip
     assert [t.count for t in link] == [8 * 64 * 24, 8 * 64]
     assert {t.price_pj for t in link} == {20.3}

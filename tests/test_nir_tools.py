@@ -328,3 +328,22 @@ def test_info_takes_dt_and_discretisation_from_the_manifest(tmp_path: Path) -> N
     assert facts["dt"] == 1e-3 and facts["discretisation"] == "exact"
     assert facts["layers"][0]["beta"] == pytest.approx(float(np.exp(-0.1)))
     assert "manifest" in facts["dt_source"]
+
+
+def test_run_defaults_to_fixed_point_and_names_float32_when_lava_cannot(files, tmp_path) -> None:
+    """nir run's default is the table's (fixed, as every door's); a graph whose neurons Lava's
+    cannot express (a decay per neuron) runs in float32, and the default's error says so."""
+    result = snnkart("nir", "run", str(files["lif1"]), "--input", str(files["x"]), "--dt", "1e-3")
+    assert result.returncode == 0 and "(fixed)" in result.stdout, result.stderr
+    graph = _chain([_lif(4, 4e-3)], 3)
+    graph.nodes["n0"].tau[1] = 8e-3
+    nir.write(tmp_path / "per-neuron.nir", graph)
+    args = ("nir", "run", str(tmp_path / "per-neuron.nir"), "--input", str(files["x"]))
+    args = (*args, "--dt", "1e-3")
+    result = snnkart(*args)
+    assert result.returncode == 2, result.stdout + result.stderr
+    (line,) = result.stderr.strip().splitlines()
+    assert "non-uniform decay" in line and "--precision float32 runs it" in line, line
+    assert snnkart(*args, "--precision", "float32").returncode == 0
+    result = snnkart(*args, "--precision", "fixed")  # asked for: the plain error
+    assert result.returncode == 2 and "--precision float32" not in result.stderr

@@ -1,5 +1,5 @@
 """``snnkart report`` on a sigma-delta deployment (a nir-ref fixed deployment of the test
-policy of :mod:`sigma_delta_policy`): report.json prices its counts with ``sd_terms`` on every
+policy of :mod:`sigma_delta_policy`): report.json prices its counts with ``terms`` on every
 chip and holds the goal's decision, equal to calling them directly; the first screen answers
 first; an old report.json is refused with the fix; ``--sweep`` prices a study's sigma-delta
 runs and draws them as their own kind."""
@@ -21,12 +21,17 @@ from snnkart.app.report_sd import stateful_note
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy import goal
 from snnkart.energy.counts import AnnCounts
+from snnkart.energy.pricing import terms as price_terms
 from snnkart.energy.pricing import total
 from snnkart.energy.profiles import DEFAULT_CHIPS, load_profile
 from snnkart.energy.sd_counts import SigmaDeltaCounts
-from snnkart.energy.sd_pricing import sd_terms, what_ifs
+from snnkart.energy.sd_pricing import what_ifs
 from snnkart.errors import ReportError
-from snnkart.report.docs_block import energy_block
+
+# scripts/docs_blocks: the documents' writers, not installed with snnkart
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+
+from docs_blocks.docs_block import energy_block
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data" / "records"
@@ -70,7 +75,7 @@ def test_the_report_prices_the_counts_with_sd_terms_and_decides_the_goal(deploye
     assert [p["chip"] for p in report["pricing"]] == list(DEFAULT_CHIPS)
     for priced in report["pricing"]:
         chip = load_profile(priced["chip"])
-        terms = sd_terms(counts, chip, fp32)  # host work on the first fair baseline
+        terms = price_terms(counts, chip, fp32)  # host work on the first fair baseline
         assert priced["terms"] == _json([t.as_dict() for t in terms])
         assert priced["snn_pj"] == pytest.approx(total(terms), rel=1e-12)
         assert priced["what_ifs"] == _json(what_ifs(counts, chip, fp32))
@@ -158,7 +163,7 @@ def test_the_sweep_prices_sigma_delta_runs_as_their_own_kind(
     points = report["sweep"]["points"]
     sd = [p for p in points if p["kind"] == "sigma-delta trained"]
     assert len(sd) == 1 and {p["kind"] for p in points} == {"dense LIF", "sigma-delta trained"}
-    expected = total(sd_terms(SigmaDeltaCounts.from_dict(counts), load_profile("loihi1"),
+    expected = total(price_terms(SigmaDeltaCounts.from_dict(counts), load_profile("loihi1"),
                               load_profile(goal.FP32)))  # fmt: skip
     assert sd[0]["energy_pj"] == pytest.approx(expected, rel=1e-12)
     from snnkart.report.document import write_report
@@ -191,7 +196,7 @@ def test_sanafe_checks_the_goal_with_its_chip_energy_plus_host_and_link(deployed
     loihi1 = load_profile("loihi1")
     energy = {}
     for b in (goal.FP32, goal.INT8):
-        off = [t for t in sd_terms(counts, loihi1, load_profile(b))
+        off = [t for t in price_terms(counts, loihi1, load_profile(b))
                if t.part in ("host link", "host compute", "memory")]  # fmt: skip
         energy[b] = section["per_inference"]["chip_pj"] + total(off)
     assert section["energy_pj"] == pytest.approx(energy, rel=1e-12)

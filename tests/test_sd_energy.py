@@ -10,17 +10,12 @@ from typing import Any
 
 import pytest
 
+from snnkart.energy.graded import graded_op
 from snnkart.energy.pricing import Term, breakdown, total
+from snnkart.energy.pricing import terms as price_terms
 from snnkart.energy.profiles import load_profile, parse_profile
 from snnkart.energy.sd_counts import SigmaDeltaCounts
-from snnkart.energy.sd_pricing import (
-    break_even_density,
-    graded_op,
-    sd_terms,
-    what_ifs,
-    with_graded_prices,
-    with_rule,
-)
+from snnkart.energy.sd_pricing import break_even_density, what_ifs, with_rule
 from snnkart.energy.uncertainty import joint
 from snnkart.errors import ProfileError, ReportError
 
@@ -45,11 +40,11 @@ def _part(terms: list[Term], part: str) -> float:
 
 def test_graded_synaptic_events_and_messages_on_a_graded_chip(tiny: SigmaDeltaCounts) -> None:
     chip, host = load_profile("loihi2"), load_profile("horowitz45_int8")
-    terms = sd_terms(tiny, chip, host)
+    terms = price_terms(tiny, chip, host)
     # (3 + 4) events x 4.2 pJ; messages: 2 hidden messages x the spike's 0 pJ
     assert _part(terms, "synaptic ops") == pytest.approx(7 * 4.2)
     assert [t.count for t in terms if t.part == "messages"] == [2.0]
-    graded = with_graded_prices(chip, tiny)
+    graded = tiny.prices_for(chip)
     # an 8-bit payload is one 8-bit word: the range is the synaptic op's own
     synop = graded.prices[graded_op("synop", 8)]
     assert (synop.low, synop.value, synop.high) == (0.067, 4.2, 6.8)
@@ -58,10 +53,10 @@ def test_graded_synaptic_events_and_messages_on_a_graded_chip(tiny: SigmaDeltaCo
 
 def test_a_binary_chip_derives_the_payload_range_per_bit(tiny: SigmaDeltaCounts) -> None:
     chip = load_profile("loihi1")
-    terms = sd_terms(tiny, chip, load_profile("horowitz45_int8"))
+    terms = price_terms(tiny, chip, load_profile("horowitz45_int8"))
     assert _part(terms, "synaptic ops") == pytest.approx(7 * 23.6)
     assert _part(terms, "messages") == pytest.approx(2 * 1.7)
-    graded = with_graded_prices(chip, tiny)
+    graded = tiny.prices_for(chip)
     # up to one spike and one accumulate per payload bit: 4 bits in, 8 bits hidden
     assert graded.prices[graded_op("synop", 4)].high == pytest.approx(35.5 * 4)
     assert graded.prices[graded_op("synop", 8)].high == pytest.approx(35.5 * 8)
@@ -75,15 +70,15 @@ def test_a_clocked_chip_updates_every_neuron_at_every_row(tiny: SigmaDeltaCounts
     chip, host = load_profile("loihi1"), load_profile("horowitz45_int8")
     assert chip.rule("neuron_updates").value == "clocked"
     # hidden 3 x 3 rows + Sigma 2 x 3 rows (the host's Delta is not a chip neuron) x 81 pJ
-    assert _part(sd_terms(tiny, chip, host), "neuron updates") == pytest.approx(15 * 81.0)
+    assert _part(price_terms(tiny, chip, host), "neuron updates") == pytest.approx(15 * 81.0)
     active = with_rule(chip, "neuron_updates", "active", "test")
-    assert _part(sd_terms(tiny, active, host), "neuron updates") == pytest.approx(4 * 81.0)
+    assert _part(price_terms(tiny, active, host), "neuron updates") == pytest.approx(4 * 81.0)
 
 
 def test_an_active_chip_pays_only_for_active_neurons(tiny: SigmaDeltaCounts) -> None:
     chip = load_profile("truenorth")
     assert chip.rule("neuron_updates").value == "active"
-    terms = [t for t in sd_terms(tiny, chip, load_profile("horowitz45_int8"))
+    terms = [t for t in price_terms(tiny, chip, load_profile("horowitz45_int8"))
              if t.part == "neuron updates"]  # fmt: skip
     assert [t.count for t in terms] == [2.0, 2.0]
     assert "active" in terms[0].what
@@ -94,12 +89,12 @@ def test_the_link_carries_input_messages_with_addresses_and_the_readout(
 ) -> None:
     # in: 4 payload bits + 1 address bit (2 inputs); out: 2 Sigma values x 24 bits (fixed)
     assert tiny.link_bits() == (5.0, 48.0)
-    terms = sd_terms(tiny, load_profile("loihi2"), load_profile("horowitz45_int8"))
+    terms = price_terms(tiny, load_profile("loihi2"), load_profile("horowitz45_int8"))
     assert _part(terms, "host link") == pytest.approx(53 * 20.3)
 
 
 def test_the_host_work_is_the_delta_and_the_readout(tiny: SigmaDeltaCounts) -> None:
-    terms = sd_terms(tiny, load_profile("loihi2"), load_profile("horowitz45_int8"))
+    terms = price_terms(tiny, load_profile("loihi2"), load_profile("horowitz45_int8"))
     host = [t for t in terms if t.part == "host compute"]
     adds = sum(t.count for t in host if t.op == "add")
     mults = sum(t.count for t in host if t.op == "mult")
@@ -125,8 +120,8 @@ def test_the_one_step_schedule_divides_the_clocked_updates_by_the_rows(
 
 def test_the_joint_uncertainty_samples_the_derived_ranges(tiny: SigmaDeltaCounts) -> None:
     chip, host = load_profile("loihi1"), load_profile("horowitz45_int8")
-    graded = with_graded_prices(chip, tiny)
-    terms = sd_terms(tiny, chip, host)
+    graded = tiny.prices_for(chip)
+    terms = price_terms(tiny, chip, host)
     events = [t for t in terms if t.part == "synaptic ops"]
     j = joint(events, terms, (graded, host), samples=2000)
     # 3 events at 23.6-142 pJ, 4 at 23.6-284 pJ: the spread covers more than the low end
@@ -136,8 +131,8 @@ def test_the_joint_uncertainty_samples_the_derived_ranges(tiny: SigmaDeltaCounts
 
 def test_break_even_density_keeps_the_clocked_updates_fixed(tiny: SigmaDeltaCounts) -> None:
     chip, host = load_profile("loihi1"), load_profile("horowitz45_int8")
-    now = total(sd_terms(tiny, chip, host))
-    fixed = total(sd_terms(tiny.scaled(0.0), chip, host))
+    now = total(price_terms(tiny, chip, host))
+    fixed = total(price_terms(tiny.scaled(0.0), chip, host))
     assert now - fixed == pytest.approx(7 * 23.6 + 2 * 1.7 + 5 * 20.3)
     out = break_even_density(tiny, chip, host, budget_pj=fixed + (now - fixed) / 2)
     assert out["density"] == pytest.approx(0.5)

@@ -14,7 +14,7 @@ import pytest
 from snnkart.app.report import build_report
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import SnnCounts
-from snnkart.energy.pricing import snn_terms, total
+from snnkart.energy.pricing import terms, total
 from snnkart.energy.profiles import load_profile
 from snnkart.errors import ReportError
 
@@ -96,7 +96,7 @@ def test_report_sweep_prices_each_run_of_a_study_as_its_deployment(
     for point in section["points"]:
         run_dir = sweep / "runs" / f"small_S-grid-snn-{point['point']}-s1"
         deploy = DeployRecord.read(run_dir / EVAL / "deploy.json")
-        expected = total(snn_terms(SnnCounts.of_deploy(deploy), chip, host))
+        expected = total(terms(SnnCounts.of_deploy(deploy), chip, host))
         assert point["energy_pj"] == pytest.approx(expected, rel=1e-12)
         assert point["success_rate"] == deploy.summary.success_rate
 

@@ -16,7 +16,7 @@ from snnkart.app.report import build_report
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.break_even import break_even_steps, break_even_width, rescaled
 from snnkart.energy.counts import AnnCounts, SnnCounts
-from snnkart.energy.pricing import Comparison, Term, ann_terms, snn_terms
+from snnkart.energy.pricing import Comparison, Term, ann_terms, terms
 from snnkart.energy.profiles import Price, Profile, load_profile
 from snnkart.energy.uncertainty import Draw, distribution, joint, sample_prices
 
@@ -60,7 +60,7 @@ def _realistic() -> tuple[list[Term], list[Term], tuple[Profile, ...]]:
     net = snn.net
     ann = AnnCounts((net.obs_dim, *net.sizes, net.n_out), net.action_mode)
     chip, dig = load_profile("loihi2"), load_profile("horowitz45_fp32_sram")
-    return snn_terms(snn, chip, dig), ann_terms(ann, dig), (chip, dig)
+    return terms(snn, chip, dig), ann_terms(ann, dig), (chip, dig)
 
 
 def test_a_seeded_sample_is_reproducible_and_another_seed_is_close() -> None:
@@ -86,7 +86,7 @@ def test_a_shared_price_is_drawn_once_for_both_sides() -> None:
     chip = _priced(load_profile("truenorth"), "free-chip")
     host = _priced(base, "host45", **{read: (5.0, 50.0)})
     dig = _priced(base, "ann45", **{read: (10.0, 100.0)})
-    s_terms, a_terms = snn_terms(snn, chip, host), ann_terms(ann, dig)
+    s_terms, a_terms = terms(snn, chip, host), ann_terms(ann, dig)
     reads_snn = sum(t.count for t in s_terms if t.op == read)
     reads_ann = sum(t.count for t in a_terms if t.op == read)
     out = joint(s_terms, a_terms, (chip, host, dig))
@@ -211,7 +211,7 @@ def test_an_ann_priced_at_zero_gives_undefined_ratios_not_a_traceback() -> None:
     free = _priced(load_profile("horowitz45_fp32"), "free")
     chip = _priced(load_profile("loihi2"), "chip", synaptic_op=(1.0, 100.0))
     cmp = Comparison(snn, ann, chip, free, free)
-    out = joint(snn_terms(snn, chip, free), ann_terms(ann, free), (chip, free))
+    out = joint(terms(snn, chip, free), ann_terms(ann, free), (chip, free))
     assert out["ratio"] == {"median": None, "p05": None, "p95": None}
     assert out["p_snn_cheaper"] == 0.0 and out["ann_pj"]["p95"] == 0.0
     steps, width = break_even_steps(cmp), break_even_width(cmp)

@@ -22,9 +22,9 @@ import math
 import os
 import signal
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Final, TypedDict
 
 from snnkart.app.launch import LaunchRecord, RunResult, RunSpec, complete, result_of
 from snnkart.errors import UsageError
@@ -32,10 +32,48 @@ from snnkart.faults import Interrupted
 from snnkart.io import write_json
 from snnkart.rl.config import TrainConfig, validate_config
 
-METRIC = "episodic_return"
+METRIC: Final = "episodic_return"
 
 
-def _train_trial(config: dict[str, Any]) -> None:
+class _Trial(TypedDict):
+    train: dict[str, object]  # the trial's training config, as JSON
+    out: str
+
+
+class TrialConfig(_Trial, total=False):
+    """What Tune hands a trial: a launched run's ``name``, or a sweep's ``search`` settings
+    (dotted keys) on top of ``train``."""
+
+    name: str
+    search: dict[str, object]
+
+
+class TrialRecord(TypedDict):
+    """One trial of a sweep, as ``sweep.json`` lists it."""
+
+    settings: dict[str, object] | None
+    iterations: int
+    max_iterations: int
+    stopped_early: bool | None  # None: interrupted, whether ASHA had is unknown
+    episodic_return: float | None  # METRIC
+    error: str | None
+    run_dir: str | None
+
+
+class SweepRecord(TypedDict):
+    """``sweep.json``: the search, every trial, the best one."""
+
+    metric: str
+    mode: str
+    grace_period: int
+    samples: int
+    interrupted: bool
+    base: dict[str, object]
+    trials: list[TrialRecord]
+    best: TrialRecord | None
+
+
+def _train_trial(config: TrialConfig) -> None:
     """A Tune trial: one ``snnkart train`` run in this worker, reporting every iteration."""
     from ray import tune
 
@@ -49,7 +87,7 @@ def _train_trial(config: dict[str, Any]) -> None:
     run_dir = Path(config["out"]) / (config.get("name") or tune.get_context().get_trial_name())
     last = {"value": -math.inf}
 
-    def report(record: dict[str, Any]) -> None:
+    def report(record: Mapping[str, float | None]) -> None:
         ret = record.get("charts/episodic_return")
         if ret is not None:
             last["value"] = float(ret)
@@ -211,8 +249,8 @@ def parse_param(text: str) -> tuple[str, Any]:
 
 
 def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
-              points: list[dict[str, Any]] | None = None, grace: int = 1,
-              address: str | None = None, cpus: int | None = None) -> dict[str, Any]:  # fmt: skip
+              points: Sequence[Mapping[str, object]] | None = None, grace: int = 1,
+              address: str | None = None, cpus: int | None = None) -> dict[str, object]:  # fmt: skip
     """Search ``params`` with Optuna, stop weak trials with ASHA; write ``out/sweep.json``."""
     from ray import tune
     from ray.tune.schedulers import ASHAScheduler
@@ -240,7 +278,7 @@ def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
         )  # fmt: skip
         grid = tuner.fit()
     stopped = stop.signum is not None
-    trials = []
+    trials: list[TrialRecord] = []
     for r in (grid[i] for i in range(len(grid))):
         ran = int(r.metrics.get("training_iteration", 0)) if r.metrics else 0
         trials.append({
@@ -252,10 +290,10 @@ def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
         })  # fmt: skip
     scored = [t for t in trials if isinstance(t[METRIC], float)]
     best = max(scored, key=lambda t: float(t[METRIC]), default=None)  # type: ignore[arg-type]
-    record = {"metric": METRIC, "mode": "max", "grace_period": grace, "samples": samples,
+    record: SweepRecord = {"metric": METRIC, "mode": "max", "grace_period": grace, "samples": samples,
               "interrupted": bool(stopped),
               "base": base.model_dump(mode="json", by_alias=True, exclude_none=True), "trials": trials, "best": best}  # fmt: skip
     write_json(out / "sweep.json", record)
     if stop.signum is not None:
         raise Interrupted(stop.signum)
-    return record
+    return dict(record)  # a plain dict: the command line reads it as JSON

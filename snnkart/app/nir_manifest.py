@@ -66,7 +66,7 @@ def _versions() -> dict[str, str]:
 
 def _env_facts(
     env: str, track: str, action_mode: str
-) -> tuple[dict[str, Any], np.ndarray, np.ndarray, int, dict[str, str]]:
+) -> tuple[dict[str, object], np.ndarray, np.ndarray, int, dict[str, str]]:
     """The env's spec, observation bounds, action count (2 for continuous) and embedded track."""
     from snnkart.envs import make, resolve_env_name
     from snnkart.envs.spec import env_spec
@@ -139,7 +139,7 @@ def write_manifest(
         raise DeployError(f"--num-steps must be at least 1, not {num_steps}")
     chain = load_open_chain(graph_path, dt, discretisation)
     spec, low, high, n_actions, track_record = _env_facts(env, track, action_mode)
-    obs_dim = int(spec["obs_dim"])
+    obs_dim = int(low.shape[0])  # the spec's obs_dim: the observation space's size
     fields = population if encoding == "population" else None
     _check_fit(chain, env, action_mode, readout, obs_dim, fields, n_actions)
     manifest = Manifest(

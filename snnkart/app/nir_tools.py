@@ -11,7 +11,6 @@ import io
 import json
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -100,8 +99,8 @@ def run_nir_run(
     check: bool,
     dt: float | None,
     discretisation: str | None,
-    show: Callable[[dict[str, Any]], None] = lambda summary: None,
-) -> dict[str, Any]:
+    show: Callable[[dict[str, object]], None] = lambda summary: None,
+) -> dict[str, object]:
     """Run the graph open loop; with ``check``, also on the reference of the same arithmetic
     (when the backend is lava-sim) and the float32 reference, and compare spike for spike.
     ``show`` sees the summary before a mismatch with the same arithmetic raises."""
@@ -110,13 +109,14 @@ def run_nir_run(
     inputs = check_inputs(read_input(input_path), chain.n_in, steps)
     fixed = quantize(chain) if arithmetic == "fixed" else None
     result = run_open_loop(chain, inputs, backend, arithmetic, fixed)
-    summary: dict[str, Any] = {
+    checks: list[dict[str, object]] = []  # snnkart.backends.open_loop.compare's, per reference
+    summary: dict[str, object] = {
         "graph": str(path),
         "backend": backend,
         "arithmetic": arithmetic,
         "steps": int(inputs.shape[0]),
         "spikes": {n: int(result.layer(i).sum()) for i, n in enumerate(result.names)},
-        "checks": [],
+        "checks": checks,
     }
     if check:
         others: list[tuple[str, Arithmetic]] = []
@@ -126,12 +126,12 @@ def run_nir_run(
             others.append(("nir-ref", "float32"))
         for other_backend, other_arith in others:
             other = run_open_loop(chain, inputs, other_backend, other_arith, fixed)
-            summary["checks"].append(compare(result, other))
+            checks.append(compare(result, other))
     if out is not None:
         _write_npz(out, result, summary)
         summary["out"] = str(out)
     show(summary)
-    same = [c for c in summary["checks"] if c["b"].endswith(arithmetic)]
+    same = [c for c in checks if str(c["b"]).endswith(arithmetic)]
     if same and not same[0]["bit_exact"]:
         raise ParityError(
             f"{backend} {arithmetic} differs from the reference of the same arithmetic: "
@@ -141,7 +141,7 @@ def run_nir_run(
     return summary
 
 
-def _write_npz(out: Path, result: OpenLoopResult, summary: dict[str, Any]) -> None:
+def _write_npz(out: Path, result: OpenLoopResult, summary: dict[str, object]) -> None:
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **result.arrays(), summary=np.array(json.dumps(summary)))
     write_bytes(out, buffer.getvalue())

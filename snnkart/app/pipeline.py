@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 from snnkart import faults
 from snnkart.app.reporter import Reporter
@@ -71,6 +71,24 @@ def refuse_main_job_folder(path: Path, exported: bool) -> None:
     )
 
 
+class Quantisation(TypedDict):
+    """``quantization.json``: the torch policy and its fixed-point twin on the same episodes."""
+
+    episodes: int
+    first_seed: int
+    torch: dict[str, object]  # an EvalSummary
+    fixed_reference: dict[str, object]
+    success_retained: float  # fixed point's success rate / torch's (NaN: torch's is 0)
+
+
+class PipelineResult(TypedDict):
+    """What the six steps made: the quantisation check, the deployments, the energy report."""
+
+    quantization: Quantisation
+    deploy: dict[str, DeployRecord]  # by precision
+    report: dict[str, object]  # snnkart.app.report.build_report's
+
+
 def run_pipeline(
     out: Path,
     reporter: Reporter,
@@ -78,7 +96,7 @@ def run_pipeline(
     lava_episodes: int = 20,
     episodes: int = QUANT_EPISODES,
     ann_steps: int = ANN_STEPS,
-) -> dict[str, Any] | None:
+) -> PipelineResult | None:
     """Run the six steps; None if training was interrupted (Ctrl-C saves a checkpoint, and
     running the command again resumes)."""
     with faults.caught():  # Ctrl-C and SIGTERM are taken between env steps
@@ -143,7 +161,7 @@ def _export(run_dir: Path, out: Path, reporter: Reporter) -> Path:
 
 def _quantisation(
     run_dir: Path, nir_path: Path, out: Path, episodes: int, reporter: Reporter
-) -> dict[str, Any]:
+) -> Quantisation:
     """The torch policy and its fixed-point twin (the bit-exact twin of Lava fixed) on the
     same seeded episodes: the quantisation's effect on the success rate."""
     from snnkart.backends.reference import NIRReference
@@ -172,7 +190,7 @@ def _quantisation(
         f"      success: torch {torch_rate:.0%}, fixed point {fixed_rate:.0%} "
         f"(keeps {retained:.0%})"
     )
-    quant = {
+    quant: Quantisation = {
         "episodes": episodes,
         "first_seed": EVAL_SEED,
         "torch": asdict(summaries["torch"]),
@@ -200,7 +218,7 @@ def _deploy(
     return records
 
 
-def _report(deploy_dir: Path, ann_dir: Path, out: Path, reporter: Reporter) -> dict[str, Any]:
+def _report(deploy_dir: Path, ann_dir: Path, out: Path, reporter: Reporter) -> dict[str, object]:
     from snnkart.app.report import run_report
 
     reporter.message("[6/6] energy report: the SNN on Loihi-class profiles vs the ANN baseline")

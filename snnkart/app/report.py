@@ -7,8 +7,9 @@ step by step); prices from hardware profiles; every energy in ``report.json`` is
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from snnkart.app.report_sd import sd_report, stateful_note
 from snnkart.app.report_sweep import sweep_section
@@ -16,15 +17,33 @@ from snnkart.app.reporter import Reporter
 from snnkart.app.sanafe_report import sanafe_section
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.records import RecordError, to_data
+from snnkart.contract.report_record import (
+    AnnRunTask,
+    AnnSection,
+    ComparisonRow,
+    DeploySection,
+    LifReport,
+    Memory,
+    Sensitivity,
+    SensitivityRow,
+    SnnSection,
+    StateNote,
+    Static,
+    Sweep,
+    Task,
+    TermRecord,
+    lif_report,
+)
+from snnkart.contract.sanafe_record import SanafeSection
 from snnkart.energy.break_even import break_even
-from snnkart.energy.counts import AnnCounts, SnnCounts
+from snnkart.energy.counts import AnnCounts, SnnCounts, placement
 from snnkart.energy.pricing import (
     Comparison,
+    Term,
     ann_terms,
     breakdown,
     not_published,
-    placement,
-    snn_terms,
+    terms,
     total,
 )
 from snnkart.energy.profiles import (
@@ -83,7 +102,7 @@ def _memory_first(digital: list[Profile]) -> list[Profile]:
     return sorted(digital, key=lambda p: not p.prices_memory)
 
 
-def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, Any]]:
+def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, AnnRunTask]:
     """The user's ANN run: its widths, and its task performance on the deployment's episodes."""
     from snnkart.eval.episodes import EvalSummary, run_episodes
     from snnkart.rl.trained import TorchPredictor, load_run
@@ -113,7 +132,7 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, 
         gym_env.close()
     summary = EvalSummary.of(results)
     steps = sum(r.length for r in results)
-    task = {
+    task: AnnRunTask = {
         "run": str(ann_dir), "global_step": run.meta.get("global_step"),
         "episodes": episodes, "first_seed": record.first_seed,
         "success_rate": summary.success_rate, "mean_lap_time": summary.mean_lap_time,
@@ -124,7 +143,7 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, dict[str, 
     return AnnCounts(widths, run.config.action_mode, "ANN run"), task
 
 
-def _snn_section(snn: SnnCounts, record: DeployRecord) -> dict[str, Any]:
+def _snn_section(snn: SnnCounts, record: DeployRecord) -> SnnSection:
     net, s = snn.net, record.summary
     return {
         "task": {
@@ -159,14 +178,14 @@ def _snn_section(snn: SnnCounts, record: DeployRecord) -> dict[str, Any]:
     }
 
 
-def _ann_section(ann: AnnCounts, task: dict[str, Any] | None) -> dict[str, Any]:
+def _ann_section(ann: AnnCounts, task: AnnRunTask | None) -> AnnSection:
     return {"label": ann.label, "widths": list(ann.widths), "macs": ann.macs,
             "neurobench": ann.neurobench(), "footprint": ann.footprint(), "task": task}  # fmt: skip
 
 
-def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]],
+def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, AnnRunTask | None]],
                  chips: list[Profile], digital: list[Profile], host: Profile | None,
-                 snn_return: float) -> list[dict[str, Any]]:  # fmt: skip
+                 snn_return: float) -> list[ComparisonRow]:  # fmt: skip
     """Every SNN profile against every ANN on every digital profile: energy per inference, per
     episode and per unit of return (None when the mean return is not positive, or for an ANN
     that was not run), the ratio with every price range sampled together, and the break-even
@@ -174,12 +193,12 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
     profile."""
     from snnkart.eval.ann_int8 import task_on
 
-    rows = []
+    rows: list[ComparisonRow] = []
     for chip in chips:
         for key, (ann, float_task) in anns.items():
             for dig in digital:
                 task = task_on(float_task, dig.name)  # int8 datapath: the int8 ANN's, measured
-                s_terms = snn_terms(snn, chip, host or dig)
+                s_terms = terms(snn, chip, host or dig)
                 e_snn = total(s_terms)
                 a_terms = ann_terms(ann, dig)
                 e_ann = total(a_terms)
@@ -189,14 +208,14 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                         "so the SNN/ANN ratio is undefined; give it non-zero prices"
                     )
                 cmp = Comparison(snn, ann, chip, host or dig, dig)
-                where = placement(snn, chip)
+                where = placement(snn.net.sizes, chip)
                 rows.append({
                     "snn_profile": chip.name, "host_profile": (host or dig).name, "ann": key,
                     "ann_profile": dig.name, "snn_pj": e_snn, "ann_pj": e_ann,
                     "ratio": e_snn / e_ann if e_ann else None,
                     "memory": _memory(snn, ann, host or dig, dig),
                     "placement": where.as_dict() if where else None,
-                    "static": cmp.with_static(),
+                    "static": cast(Static, cmp.with_static()),  # the record it writes
                     "not_published": not_published(chip, host or dig, dig),
                     "ann_success_rate": task["success_rate"] if task else None,
                     "ann_success": _ann_success(task, float_task),
@@ -207,15 +226,19 @@ def _comparisons(snn: SnnCounts, anns: dict[str, tuple[AnnCounts, dict[str, Any]
                         e_ann * task["steps_per_episode"], task["mean_return"]
                     ) if task else None,
                     "snn_breakdown_pj": breakdown(s_terms), "ann_breakdown_pj": breakdown(a_terms),
-                    "snn_terms": [t.as_dict() for t in s_terms],
-                    "ann_terms": [t.as_dict() for t in a_terms],
+                    "snn_terms": _records(s_terms), "ann_terms": _records(a_terms),
                     "break_even": break_even(cmp),
                     "uncertainty": joint(s_terms, a_terms, (chip, host or dig, dig)),
                 })  # fmt: skip
     return rows
 
 
-def _memory(snn: SnnCounts, ann: AnnCounts, host: Profile, digital: Profile) -> dict[str, Any]:
+def _records(priced: Sequence[Term]) -> list[TermRecord]:
+    """The terms as ``report.json`` lists them (:meth:`Term.as_dict` writes the record)."""
+    return [cast(TermRecord, t.as_dict()) for t in priced]
+
+
+def _memory(snn: SnnCounts, ann: AnnCounts, host: Profile, digital: Profile) -> Memory:
     """Each side's weight footprint and the memory array it is read from (its own row)."""
     snn_bytes = host.weight_bytes(snn.net.host_parameters)
     ann_bytes = digital.weight_bytes(ann.parameters)
@@ -223,7 +246,7 @@ def _memory(snn: SnnCounts, ann: AnnCounts, host: Profile, digital: Profile) -> 
             "ann_weight_bytes": ann_bytes, "ann_array": memory_row(ann_bytes)}  # fmt: skip
 
 
-def _ann_success(task: dict[str, Any] | None, float_task: dict[str, Any] | None) -> str:
+def _ann_success(task: Task | None, float_task: AnnRunTask | None) -> str:
     """Where the ANN's success on a profile comes from."""
     if task is None:
         return "not run"
@@ -236,7 +259,7 @@ def _per_return(energy: float, mean_return: float) -> float | None:
     return energy / mean_return if mean_return > 0 else None
 
 
-def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> dict[str, Any]:
+def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> DeploySection:
     """Where the counts come from: the deployment, its env and track, and its parity."""
     return {
         "file": str(deploy_dir),
@@ -255,12 +278,12 @@ def _deploy_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts) -> d
 
 
 def _anns(snn: SnnCounts, record: DeployRecord,
-          ann_dir: Path | None) -> dict[str, tuple[AnnCounts, dict[str, Any] | None]]:  # fmt: skip
+          ann_dir: Path | None) -> dict[str, tuple[AnnCounts, AnnRunTask | None]]:  # fmt: skip
     """The ANN baselines: the same widths (taking the observation itself, not a population
     code of it), and the user's ANN run if given."""
     net = snn.net
     widths = (net.obs_dim, *net.sizes, net.n_out) if net.readout else (net.obs_dim, *net.sizes)
-    anns: dict[str, tuple[AnnCounts, dict[str, Any] | None]] = {
+    anns: dict[str, tuple[AnnCounts, AnnRunTask | None]] = {
         "same_width": (AnnCounts(widths, net.action_mode,
                                  f"ANN {'-'.join(map(str, net.sizes))} (same widths)"), None),
     }  # fmt: skip
@@ -271,8 +294,9 @@ def _anns(snn: SnnCounts, record: DeployRecord,
 
 def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
                  host: str | None = None, sweep: Path | None = None,
-                 sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
-    """Everything the report says, as one JSON-ready record."""
+                 sanafe: bool = False) -> dict[str, object]:  # fmt: skip
+    """Everything the report says, as one JSON-ready record (a :class:`LifReport`, or a
+    sigma-delta deployment's :class:`~snnkart.contract.report_record.SdReport`)."""
     record = read_deploy(deploy_dir)
     chips, digital, host_profile = _profiles(profiles, host)
     fair = host_profile or _memory_first(digital)[0]
@@ -282,14 +306,14 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
                 "--ann: a sigma-delta deployment is compared with the ANN of its own shape "
                 "(fp32 and int8, memory-inclusive); run snnkart report without --ann"
             )
-        report = sd_report(record, deploy_dir, chips, host_profile, DRIVES, sanafe)
-        report["sweep"] = None if sweep is None else sweep_section(sweep, chips[0], fair, digital)
-        return {"schema": REPORT_SCHEMA, **report}
+        sd = sd_report(record, deploy_dir, chips, host_profile, DRIVES, sanafe)
+        sd["sweep"] = None if sweep is None else sweep_section(sweep, chips[0], fair, digital)
+        return {"schema": REPORT_SCHEMA, **sd}
     snn = SnnCounts.of_deploy(record)
     net = snn.net
     anns = _anns(snn, record, ann_dir)
     success = record.summary.success_rate
-    report = {
+    report: LifReport = {
         "schema": REPORT_SCHEMA,
         "deploy": _deploy_section(record, deploy_dir, snn),
         "drives": success >= DRIVES,
@@ -312,28 +336,45 @@ def build_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | N
             snn, anns, chips, digital, host_profile, record.summary.mean_return
         ),
         "uncertainty": method(),
-        "sensitivity": [
-            {
-                "snn_profile": c.name,
-                "ann_profile": d.name,
-                "rows": Comparison(
-                    snn, anns["same_width"][0], c, host_profile or d, d
-                ).sensitivity(),
-            }
-            for c in chips
-            for d in _memory_first(digital)
-        ],
-        "sweep": None if sweep is None else sweep_section(sweep, chips[0], fair, digital),
-        "sanafe": sanafe_section(record, deploy_dir, snn),  # the second chip model
+        "sensitivity": _sensitivity(snn, anns["same_width"][0], chips, digital, host_profile),
+        "sweep": None if sweep is None else _sweep(sweep, chips[0], fair, digital),
+        "sanafe": cast(SanafeSection, sanafe_section(record, deploy_dir, snn)),  # 2nd chip model
     }
     state = stateful_note(record)
-    return report if state is None else {**report, "state": state}
+    if state is not None:
+        report["state"] = cast(StateNote, state)
+    return dict(report)  # a plain dict: the document writers take any JSON mapping
+
+
+def _sensitivity(
+    snn: SnnCounts,
+    ann: AnnCounts,
+    chips: list[Profile],
+    digital: list[Profile],
+    host: Profile | None,
+) -> list[Sensitivity]:
+    """One price at a time, for each chip against the same-width ANN on each digital profile
+    (the memory-inclusive first); :meth:`Comparison.sensitivity` writes the rows."""
+    return [
+        {
+            "snn_profile": c.name,
+            "ann_profile": d.name,
+            "rows": cast(list[SensitivityRow], Comparison(snn, ann, c, host or d, d).sensitivity()),
+        }
+        for c in chips
+        for d in _memory_first(digital)
+    ]
+
+
+def _sweep(path: Path, chip: Profile, host: Profile, digital: list[Profile]) -> Sweep:
+    """The study's runs priced (:func:`sweep_section`, which writes this record)."""
+    return cast(Sweep, sweep_section(path, chip, host, digital))
 
 
 def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | None,
                out: Path | None, reporter: Reporter, host: str | None = None,
                sweep: Path | None = None, step: int = 0,
-               sanafe: bool = False) -> dict[str, Any]:  # fmt: skip
+               sanafe: bool = False) -> dict[str, object]:  # fmt: skip
     """Build the report and write ``report.json``, ``report.md`` and ``report.html``."""
     from snnkart.report.document import write_report
 
@@ -350,13 +391,13 @@ def run_report(deploy_dir: Path, ann_dir: Path | None, profiles: list[str] | Non
     return report
 
 
-def _trace(report: dict[str, Any], deploy_dir: Path, step: int, reporter: Reporter) -> Any:
+def _trace(report: Mapping[str, object], deploy_dir: Path, step: int, reporter: Reporter) -> Any:
     """The raster of one env step on the deployment's track, if its NIR file is still there
     (as recorded, or beside the deployment directory)."""
     from snnkart.errors import SnnkartError
     from snnkart.eval.trace import trace_step
 
-    d = report["deploy"]
+    d = lif_report(report)["deploy"]
     recorded = Path(d.get("nir_file") or "policy.nir")
     base = deploy_dir if deploy_dir.is_dir() else deploy_dir.parent
     found = next((p for p in (recorded, base.parent / recorded.name, base / recorded.name)

@@ -1,5 +1,5 @@
 """``snnkart report`` on a sigma-delta deployment: its counts per env step priced on every chip
-profile (:func:`snnkart.energy.sd_pricing.sd_terms`), the schedule and update-rule what-ifs, the
+profile (:func:`snnkart.energy.pricing.terms`), the schedule and update-rule what-ifs, the
 joint 90 % intervals against the fair ANN baselines (the same shape on ``horowitz45_fp32_sram``
 and ``horowitz45_int8``) and issue 34's goal, decided (:func:`snnkart.energy.goal.decide`).
 
@@ -18,10 +18,10 @@ from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.records import to_data
 from snnkart.energy import goal
 from snnkart.energy.counts import AnnCounts
-from snnkart.energy.pricing import ann_terms, breakdown, total
+from snnkart.energy.pricing import ann_terms, breakdown, terms, total
 from snnkart.energy.profiles import Profile, load_profile
 from snnkart.energy.sd_counts import SigmaDeltaCounts
-from snnkart.energy.sd_pricing import sd_terms, what_ifs
+from snnkart.energy.sd_pricing import what_ifs
 from snnkart.energy.uncertainty import method
 
 KIND = "sigma-delta"
@@ -55,12 +55,12 @@ def chip_pricing(counts: SigmaDeltaCounts, chip: Profile, baselines: list[Profil
     """One chip: the terms (host work on ``host``, else on the first baseline), the what-ifs and
     the joint 90 % interval of the ratio against each baseline."""
     on = host or baselines[0]
-    terms = sd_terms(counts, chip, on)
+    priced = terms(counts, chip, on)
     ann = same_shape_ann(counts)
     factors = dict(goal.BOUNDS)
     return {
-        "chip": chip.name, "host_profile": on.name, "snn_pj": total(terms),
-        "breakdown_pj": breakdown(terms), "terms": [t.as_dict() for t in terms],
+        "chip": chip.name, "host_profile": on.name, "snn_pj": total(priced),
+        "breakdown_pj": breakdown(priced), "terms": [t.as_dict() for t in priced],
         "what_ifs": what_ifs(counts, chip, on),
         "intervals": [_interval(goal.priced_policy(counts, chip, b, ann), factors[b.name])
                       for b in baselines],

@@ -9,10 +9,9 @@ from typing import Any
 
 from snnkart.contract.records import Reading, RecordError, from_data
 from snnkart.energy.counts import AnnCounts, SnnCounts
-from snnkart.energy.pricing import ann_terms, snn_terms, total
+from snnkart.energy.pricing import ann_terms, terms, total
 from snnkart.energy.profiles import Profile
 from snnkart.energy.sd_counts import SigmaDeltaCounts
-from snnkart.energy.sd_pricing import sd_terms
 from snnkart.errors import ReportError
 from snnkart.report.study_record import STUDY, RunRecord, StudyRecord
 
@@ -44,7 +43,7 @@ def _read_sweep(path: Path) -> StudyRecord:
 
 
 def _point(run: RunRecord, label: str, chip: Profile, host: Profile) -> dict[str, Any]:
-    """One run priced: a sigma-delta run's counts with sd_terms, a LIF run's with snn_terms;
+    """One run priced (:func:`~snnkart.energy.pricing.terms`, whatever its family);
     ``label`` is its kind's name for it (:meth:`StudySettings.run_label`)."""
     base = {"point": run.variant or f"{run.env}-{run.policy}", "seed": run.seed}
     kind = {"kind": label}
@@ -52,12 +51,12 @@ def _point(run: RunRecord, label: str, chip: Profile, host: Profile) -> dict[str
         sd = SigmaDeltaCounts.from_dict(run.sigma_delta_counts)
         return {**base, "num_steps": 1, "sizes": list(sd.sizes),
                 "success_rate": run.eval_success_rate,
-                "energy_pj": total(sd_terms(sd, chip, host)), **kind}  # fmt: skip
+                "energy_pj": total(terms(sd, chip, host)), **kind}  # fmt: skip
     counts = run.eval_counts_per_step
     assert counts is not None
     return {**base, "num_steps": counts.num_steps, "sizes": counts.sizes,
             "success_rate": run.eval_success_rate,
-            "energy_pj": total(snn_terms(SnnCounts.of_sweep(counts), chip, host)), **kind}  # fmt: skip
+            "energy_pj": total(terms(SnnCounts.of_sweep(counts), chip, host)), **kind}  # fmt: skip
 
 
 def _ann_shape(runs: list[RunRecord]) -> tuple[str, AnnCounts]:
@@ -77,7 +76,7 @@ def sweep_section(
 ) -> dict[str, Any]:
     """A study's SNN runs, priced: each run's energy per inference on ``chip`` (host work on
     ``host``) from the counts of its evaluation on the reference (a sigma-delta run's with
-    :func:`snnkart.energy.sd_pricing.sd_terms`), with its kind (:meth:`~snnkart.report.study_record.StudySettings.run_label`: from the settings it trained with), and the
+    :func:`snnkart.energy.pricing.terms`), with its kind (:meth:`~snnkart.report.study_record.StudySettings.run_label`: from the settings it trained with), and the
     ANN's (:func:`_ann_shape`) on each digital profile. A run's point is its variant (its cell
     without variants)."""
     record = _read_sweep(path)

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from snnkart.errors import DeployError
 from snnkart.io import write_json
+
+if TYPE_CHECKING:
+    from snnkart.app.opener import Target
 
 ODOM_ORIGINS = ("track", "spawn")
 
@@ -67,9 +70,12 @@ def sim_env(policy: Path | None, track: str | None) -> Any:
 
 
 def _policy_env(policy: Path) -> tuple[Any, Any]:
-    """The gazebo env ``policy`` (a run directory or its policy.nir) was trained for, and the
-    track it was trained on."""
-    if policy.suffix == ".nir":
+    """The gazebo env ``policy`` (a run directory, a checkpoint in one or its policy.nir) was
+    trained for, and the track it was trained on."""
+    from snnkart.app.opener import locate
+
+    run_dir = locate(policy)
+    if run_dir is None:
         from snnkart.contract.manifest import Manifest, manifest_path
         from snnkart.eval.policy_env import make_policy_env, resolve_track
 
@@ -79,7 +85,7 @@ def _policy_env(policy: Path) -> tuple[Any, Any]:
     else:
         from snnkart.rl.open_run import open_run
 
-        run = open_run(policy)
+        run = open_run(run_dir, policy if policy.is_file() else None)
         trained = run.track
         env = run.config.make_env(track=trained)
     _check_gazebo(env)
@@ -97,38 +103,49 @@ def _check_gazebo(env: Any) -> None:
         )
 
 
-def _policy(policy: Path, backend: str, precision: str) -> tuple[Any, Any]:
-    """The predictor and the env it was trained for (a gazebo env)."""
-    if backend == "torch":
-        from snnkart.rl.trained import TorchPredictor, load_run
+def _policy(target: Target) -> tuple[Any, Any]:
+    """The target's predictor (a run on a NIR backend is exported first) and the env it was
+    trained for (a gazebo env)."""
+    from snnkart.app.opener import open_predictor
 
-        run = load_run(policy)
-        env = run.config.make_env(track=run.track)
-        predictor: Any = TorchPredictor(run)
-    else:
-        from snnkart.backends.registry import open_backend
-        from snnkart.eval.closed_loop import make_policy_env
+    predictor: Any = open_predictor(target)
+    try:
+        if target.backend == "torch":
+            env = predictor.run.config.make_env(track=predictor.run.track)
+        else:
+            from snnkart.eval.policy_env import make_policy_env
 
-        if policy.suffix != ".nir":
-            raise DeployError(f"--backend {backend} runs an exported policy.nir, not {policy}")
-        predictor = open_backend(policy, backend, precision)
-        env = make_policy_env(predictor.manifest, None, None)
-    _check_gazebo(env)
+            env = make_policy_env(predictor.manifest, None, None)
+        _check_gazebo(env)
+    except BaseException:
+        predictor.close()
+        raise
     return predictor, env
 
 
 def run_drive(
-    policy: Path, backend: str, precision: str, lock_step: bool, timeout: float,
-    max_seconds: float | None, max_linear: float | None = None, max_angular: float | None = None,
+    policy: Path,
+    backend: str,
+    precision: str | None,
+    lock_step: bool,
+    timeout: float,
+    max_seconds: float | None,
+    max_linear: float | None = None,
+    max_angular: float | None = None,
     odom_origin: str = "track",
-) -> dict[str, Any]:  # fmt: skip
+) -> dict[str, Any]:
+    """Drive the robot with ``policy`` (a run directory, a checkpoint in one or a policy.nir)
+    on ``backend`` in ``precision`` (None: the backend's default, fixed on nir-ref and
+    lava-sim; :func:`snnkart.app.opener.choose`)."""
+    from snnkart.app.opener import choose
     from snnkart.ros.convert import OdomFrame
     from snnkart.ros.node import DriveNode
     from snnkart.ros.rospy_import import check_master, init_node
 
     _check_origin(odom_origin)
+    target = choose(policy, backend, precision)  # the opener's rules and defaults, cheaply
     check_master()  # before loading anything heavy
-    predictor, env = _policy(policy, backend, precision)
+    predictor, env = _policy(target)
     try:
         frame = OdomFrame.at_spawn(env.unwrapped.track) if odom_origin == "spawn" else None
         init_node("snnkart_drive")
@@ -138,9 +155,7 @@ def run_drive(
         result = node.spin(max_seconds)
     finally:
         env.close()
-        close = getattr(predictor, "close", None)
-        if close is not None:
-            close()
+        predictor.close()
     lat = sorted(result.latencies or [])
     return {
         "commands": result.commands,

@@ -34,7 +34,7 @@ from snnkart.backends.quantize import FixedPointNetwork
 from snnkart.contract.deploy_inputs import DeployInputs, InputsError
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.energy.counts import SnnCounts
-from snnkart.energy.pricing import snn_terms
+from snnkart.energy.pricing import terms
 from snnkart.energy.profiles import load_profile
 from snnkart.energy.sanafe_model import (
     CONTROL_PERIOD_S,
@@ -163,7 +163,7 @@ def compare(result: dict[str, Any], inputs: DeployInputs, snn: SnnCounts,
     replay, chain = result["replay"], result["chain"]
     est = per_inference(replay)
     loihi1 = load_profile("loihi1")
-    chip = [t.as_dict() for t in snn_terms(replace(snn, host=()), loihi1, loihi1)]
+    chip = [t.as_dict() for t in terms(replace(snn, host=()), loihi1, loihi1)]
     c = record.counts
     o = c.pipeline_overhead
     deployed = [s + (o.spikes[i] if o else 0) for i, s in enumerate(c.spikes)]

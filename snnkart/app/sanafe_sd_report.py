@@ -18,16 +18,15 @@ from typing import Any
 import numpy as np
 
 from snnkart.contract.deploy_record import DeployRecord
-from snnkart.energy.pricing import total
+from snnkart.energy.pricing import terms, total
 from snnkart.energy.profiles import load_profile
 from snnkart.energy.sanafe_model import INSTALL_HINT, sanafe_python
 from snnkart.energy.sanafe_sd import job_of, per_inference, run_sd, sent_from_counts
 from snnkart.energy.sd_counts import SigmaDeltaCounts
-from snnkart.energy.sd_pricing import sd_terms
 from snnkart.errors import SnnkartError
 
 OFF_CHIP = ("host link", "host compute", "memory")
-"""The parts of :func:`sd_terms` SANA-FE does not model (added to its chip energy)."""
+"""The parts of :func:`~snnkart.energy.pricing.terms` SANA-FE does not model (added to its chip energy)."""
 LINK_CHIP = "loihi1"
 """The profile whose host-link price (io_bit) is added: SANA-FE's model is Loihi 1's."""
 
@@ -66,7 +65,7 @@ def sanafe_sd(record: DeployRecord, counts: SigmaDeltaCounts,
                  python)  # fmt: skip
     per = per_inference(run)
     link = load_profile(LINK_CHIP)
-    off_chip = {b: total(t for t in sd_terms(counts, link, load_profile(b)) if t.part in OFF_CHIP)
+    off_chip = {b: total(t for t in terms(counts, link, load_profile(b)) if t.part in OFF_CHIP)
                 for b in baselines}  # fmt: skip
     energy = {b: per["chip_pj"] + e for b, e in off_chip.items()}
     return {"available": True, "model": "SANA-FE 2.2.9 Loihi (sigma-delta replay, each message "

@@ -8,7 +8,7 @@ import hashlib
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from snnkart.app.pool import Exit, Job, Pool
 from snnkart.app.protocol import is_tuning_track
@@ -220,7 +220,7 @@ class Evaluation:
     summary: EvalSummary
     spikes_per_step: float | None = None
     counts_per_step: StepCounts | None = None
-    sigma_delta_counts: dict[str, Any] | None = None
+    sigma_delta_counts: dict[str, object] | None = None
     """A sigma-delta network's counts per env step (:class:`SigmaDeltaCounts` as a dict)."""
 
 

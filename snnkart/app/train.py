@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import signal
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from snnkart.app.reporter import Reporter
 from snnkart.envs.tracks import track_label
 from snnkart.rl.config import TrainConfig
 
 if TYPE_CHECKING:
+    from snnkart.rl.bc import BcSummary
     from snnkart.rl.ppo import Trainer
 
 
@@ -91,7 +92,7 @@ def _trainer(
     return trainer
 
 
-def _cloned(bc: dict[str, Any]) -> str:
+def _cloned(bc: BcSummary) -> str:
     """One line on the behaviour cloning that warm-started a run (:mod:`snnkart.rl.bc`)."""
     return (
         f"behaviour cloning of {bc['data']} ({bc['steps']:,} steps, {bc['episodes']} "

@@ -49,6 +49,10 @@ class EvalJob:
     out: str
     backend: str = "torch"
     precision: str = "fixed"
+    """The ``--precision`` word on a NIR backend: ``fixed``, the default of both in the one
+    table (:data:`snnkart.backends.defaults.DEFAULT_PRECISIONS`; tests/test_doors.py keeps
+    them equal); torch ignores it. Written out, not None, so a study's request keys
+    (:func:`snnkart.app.study_eval._eval_key`) stay what they were."""
     kind: str = "eval"
     sigma_delta: bool = False  # a ReLU ANN run converted to sigma-delta before it runs
     tracks: list[str] = field(default_factory=list)
@@ -114,20 +118,22 @@ def track_out(out: Path, track: str, backend: str) -> Path:
     return out / (f"{name}.json" if backend == "torch" else name)
 
 
-def _evaluate(request: EvalJob, run_dir: Path, out: Path, track: str | None,
-              reporter: LineReporter) -> None:  # fmt: skip
-    """One evaluation of the request's run, on ``track`` (None: its own), into ``out``."""
+def _evaluate(
+    request: EvalJob, run_dir: Path, out: Path, track: str | None, reporter: LineReporter
+) -> None:
+    """One evaluation of the request's run, on ``track`` (None: its own), into ``out``, opened
+    by the opener's rules (:func:`snnkart.app.opener.choose`)."""
     from snnkart.app.evaluate import run_eval, run_eval_exported
+    from snnkart.app.opener import choose
 
-    if request.backend == "torch":
-        run_eval(run_dir, request.episodes, request.seed, None, False, None, out, reporter,
-                 track=track)  # fmt: skip
+    target = choose(run_dir, request.backend, request.precision, sigma_delta=request.sigma_delta)
+    where, which = target.run_dir or target.path, target.checkpoint
+    episodes, seed = request.episodes, request.seed
+    if target.backend == "torch":
+        run_eval(where, episodes, seed, which, False, None, out, reporter, track)
         return
-    from snnkart.eval.request import DeployRequest
-
-    deploy = DeployRequest(run_dir, request.backend, request.precision, request.episodes,
-                           request.seed, track=track, out=out)  # fmt: skip
-    run_eval_exported(run_dir, None, deploy, reporter, sigma_delta=request.sigma_delta)
+    deploy = target.deploy_request(episodes, seed, track=track, out=out)
+    run_eval_exported(where, which, deploy, reporter, sigma_delta=target.sigma_delta)
 
 
 def main(argv: list[str] | None = None) -> int:

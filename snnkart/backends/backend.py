@@ -48,12 +48,58 @@ class Engine(Protocol):
     def close(self) -> None: ...
 
 
-class EngineOwner:
-    """Closing a running policy's engine, also as a context manager: a close that fails
-    while another error is on its way out gives way to that error. Shared by :class:`Backend`
-    and the sigma-delta backends."""
+class RunningPolicy:
+    """What every backend of every family is: a policy running on an engine. ``step(obs)``
+    encodes the observation on the host (the family's codec), runs one env step on the engine,
+    counts it and returns the window and the readout; ``predict`` the decoded action;
+    :meth:`parity_references` the references the parity check shadows it with. Closing stops
+    the engine, also as a context manager: a close that fails while another error is on its
+    way out gives way to that error.
 
+    A family supplies the model (:class:`Backend` for LIF chains,
+    :class:`~snnkart.backends.sdnn_backend.SigmaDeltaBackend`); a backend of it opens the
+    engine; :data:`snnkart.backends.registry.ENGINES` names each (backend, family) pair."""
+
+    name: ClassVar[str]
+    arithmetics: ClassVar[tuple[Arithmetic, ...]] = ("float32", "float64", "fixed")
+    float32_form: ClassVar[bool] = True  # the policy has a float32 (torch order) reference
+    records_inputs: ClassVar[bool] = True  # a deploy writes inputs.npz (what entered the chip)
     engine: Any
+    codec: Any
+    manifest: Any
+    arithmetic: Arithmetic
+    fixed: FixedPointNetwork | None
+    counts: Any
+
+    def __init__(self, policy: Any, arithmetic: Arithmetic, seed: int = 0) -> None:
+        raise NotImplementedError  # a family's class builds the codec, counts and engine
+
+    @property
+    def raster_sizes(self) -> tuple[int, ...]:
+        """The raster's blocks of columns (each sending layer's neurons)."""
+        raise NotImplementedError
+
+    def step(self, obs: np.ndarray) -> tuple[Any, np.ndarray]:
+        raise NotImplementedError
+
+    def reset(self) -> None:
+        """The start of an episode."""
+
+    def parity_references(self) -> tuple[Arithmetic | None, Arithmetic | None]:
+        """The arithmetic of the reference that must agree bit for bit (None for the reference
+        itself) and of the float32 one that measures what the arithmetic changes (None when
+        there is none)."""
+        raise NotImplementedError
+
+    def normalise(self, obs: np.ndarray) -> np.ndarray:
+        return np.asarray(self.codec.normalise(obs))
+
+    def readout(self, obs: np.ndarray) -> np.ndarray:
+        """The readout vector (logits or action means) for one observation."""
+        return self.step(obs)[1]
+
+    def predict(self, obs: np.ndarray) -> Any:
+        return self.codec.decode(self.readout(obs))
 
     def close(self) -> None:
         self.engine.close()
@@ -71,17 +117,15 @@ class EngineOwner:
                 pass  # the engine was stopped; the original error matters more
 
 
-_Owner = TypeVar("_Owner", bound=EngineOwner)
+_Owner = TypeVar("_Owner", bound=RunningPolicy)
 
 
-class Backend(EngineOwner):
-    """A running policy: ``step(obs)`` encodes the observation on the host, runs one window on
-    the engine and returns the window and the readout; ``predict`` the decoded action.
+class Backend(RunningPolicy):
+    """The LIF family's running policy: ``step(obs)`` turns the observation into the first
+    layer's current on the host, runs one window on the engine and returns the window and the
+    readout.
 
     Subclasses open their engine in :meth:`open_engine`; everything else is here."""
-
-    name: ClassVar[str]
-    float32_form: ClassVar[bool] = True  # the policy has a float32 (torch order) reference
 
     def __init__(
         self, source: str | Path | LoadedPolicy, arithmetic: Arithmetic, seed: int = 0
@@ -122,20 +166,7 @@ class Backend(EngineOwner):
         self.counts.add(window, self.chain.fan_out)
         return window, self.codec.readout_spikes(last)
 
-    def normalise(self, obs: np.ndarray) -> np.ndarray:
-        return self.codec.normalise(obs)
-
-    def readout(self, obs: np.ndarray) -> np.ndarray:
-        """The readout vector (logits or action means) for one observation."""
-        return self.step(obs)[1]
-
-    def predict(self, obs: np.ndarray) -> Any:
-        return self.codec.decode(self.readout(obs))
-
     def parity_references(self) -> tuple[Arithmetic | None, Arithmetic | None]:
-        """The parity hook: the arithmetic of the reference that must agree bit for bit (None
-        for the reference itself) and of the float32 one that measures what the arithmetic
-        changes (None when this is the float32 reference)."""
         own = self.engine.is_reference
         exact = None if own else self.arithmetic
         float32: Arithmetic | None = None if own and self.arithmetic == "float32" else "float32"

@@ -51,6 +51,7 @@ class GraphInfo:
     lava: dict[str, str] = field(default_factory=dict)  # node -> why lava-sim cannot run it
     layers: list[dict[str, Any]] = field(default_factory=list)  # per spiking layer, at dt
     state: str | None = None  # the manifest's state semantics, when the graph alone misleads
+    recurrence: list[str] = field(default_factory=list)  # each cycle, and how it runs
 
     @property
     def lava_supported(self) -> bool:
@@ -145,12 +146,27 @@ def describe_graph(
     except UnsupportedGraphError as exc:
         info.reference = str(exc)
         return info
+    info.recurrence = _recurrence(chain)
     if dt is None:
         info.lava = {"graph": "needs a time step (--dt) to check the decays and gains"}
         return info
     info.lava = dict(lava_problems(chain))
     info.layers = _layer_decays(chain)
     return info
+
+
+def _recurrence(chain: ChainNetwork) -> list[str]:
+    """Each cycle ``neuron -> synapse -> neuron`` of ``chain``, in words: what it means and how
+    the backends run it."""
+    return [
+        f"{layer.neuron} -> {layer.recurrent_node} -> {layer.neuron}: a recurrent synapse "
+        f"({layer.size}x{layer.size}); the layer's spikes of one step reach its own input at the "
+        "next, summed with the feed-forward current (a bias on the cycle's synapse is folded "
+        "into the feed-forward one: it arrives every step); lava-sim runs it as a Dense from "
+        "the layer's spikes to its own input, the reference as the same one-step-late product"
+        for layer in chain.layers
+        if layer.recurrent is not None
+    ]
 
 
 def _flow_order(graph: Any) -> list[str]:

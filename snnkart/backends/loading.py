@@ -12,7 +12,7 @@ import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -24,6 +24,7 @@ from snnkart.backends.network import (
 )
 from snnkart.backends.quantize import FixedPointNetwork, quantize
 from snnkart.backends.sdnn_policy import SigmaDeltaPolicy, sigma_delta_policy
+from snnkart.contract.deploy_record import NetworkShape
 from snnkart.contract.manifest import LayerSpec, Manifest, manifest_path
 from snnkart.errors import NIRFileError
 
@@ -40,6 +41,7 @@ class LoadedPolicy:
     graph: Any  # nir.NIRGraph
     manifest: Manifest
     chain: ChainNetwork
+    family: ClassVar[str] = "lif"
 
     @cached_property
     def fixed(self) -> FixedPointNetwork:
@@ -50,6 +52,14 @@ class LoadedPolicy:
     def num_steps(self) -> int:
         """T: SNN steps per env step."""
         return self.manifest.num_steps
+
+    def shape(self) -> NetworkShape:
+        """The chain's shape, as the deploy record keeps it for the energy report."""
+        chain = self.chain
+        return NetworkShape(
+            n_in=chain.n_in, sizes=tuple(chain.sizes), n_out=chain.n_out,
+            readout=chain.readout_weight is not None, input_scale=chain.input_scale is not None,
+        )  # fmt: skip
 
 
 def load_policy(path: str | Path) -> LoadedPolicy:
@@ -63,7 +73,11 @@ def load_policy(path: str | Path) -> LoadedPolicy:
     return policy
 
 
-def open_policy(path: str | Path) -> LoadedPolicy | SigmaDeltaPolicy:
+Opened = LoadedPolicy | SigmaDeltaPolicy
+"""What :func:`open_policy` reads: a policy of one family (its ``family``)."""
+
+
+def open_policy(path: str | Path) -> Opened:
     """Read and validate the policy ``path``: a LIF chain, or a sigma-delta policy when its
     manifest has a ``sigma_delta`` block (:mod:`snnkart.backends.sdnn_policy`)."""
     path = Path(path)

@@ -1,8 +1,9 @@
 """The backends by name: each backend's ``--precision`` words and the arithmetic each means,
-and the class that opens its engine.
+and, per backend and network family (:data:`snnkart.contract.family.FAMILIES`), the class that
+runs a policy of that family on it.
 
-The only module that imports by name (a string in :data:`BACKEND_CLASSES`): a backend's module
-is imported when it is opened, so naming the backends costs nothing (``lava-sim``'s module is
+The only module that imports by name (a string in :data:`ENGINES`): a backend's module is
+imported when it is opened, so naming the backends costs nothing (``lava-sim``'s module is
 never imported by a run on the reference), and no backend module imports this one.
 """
 
@@ -13,15 +14,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from snnkart.backends.base import Arithmetic
-from snnkart.backends.loading import LoadedPolicy, open_policy
-from snnkart.backends.sdnn_policy import SigmaDeltaPolicy
+from snnkart.backends.loading import Opened, open_policy
 from snnkart.errors import DeployError, did_you_mean
 
 if TYPE_CHECKING:
-    from snnkart.backends.backend import Backend
-    from snnkart.backends.sdnn_backend import SigmaDeltaBackend
-
-    AnyBackend = Backend | SigmaDeltaBackend
+    from snnkart.backends.backend import RunningPolicy
 
 PRECISIONS: dict[str, dict[str, Arithmetic]] = {
     "lava-sim": {"float": "float64", "fixed": "fixed"},
@@ -30,17 +27,15 @@ PRECISIONS: dict[str, dict[str, Arithmetic]] = {
 """Per backend, the accepted ``--precision`` words and the arithmetic each means."""
 BACKENDS = tuple(PRECISIONS)
 
-BACKEND_CLASSES: dict[str, str] = {
-    "lava-sim": "snnkart.backends.lava_sim:LavaSimPredictor",
-    "nir-ref": "snnkart.backends.reference:NIRReference",
+ENGINES: dict[tuple[str, str], str] = {
+    ("lava-sim", "lif"): "snnkart.backends.lava_sim:LavaSimPredictor",
+    ("nir-ref", "lif"): "snnkart.backends.reference:NIRReference",
+    ("lava-sim", "sigma_delta"): "snnkart.backends.sdnn_lava:SigmaDeltaLava",
+    ("nir-ref", "sigma_delta"): "snnkart.backends.sdnn_backend:SigmaDeltaReference",
 }
-"""Per backend, ``module:class`` of its :class:`~snnkart.backends.backend.Backend` subclass,
-whose ``open_engine`` starts its engine; a new engine adds one line here."""
-SIGMA_DELTA_CLASSES: dict[str, str] = {
-    "lava-sim": "snnkart.backends.sdnn_lava:SigmaDeltaLava",
-    "nir-ref": "snnkart.backends.sdnn_backend:SigmaDeltaReference",
-}
-"""The same for a sigma-delta policy (a manifest with a ``sigma_delta`` block)."""
+"""Per (backend, family), ``module:class`` of the :class:`~snnkart.backends.backend.
+RunningPolicy` that runs a policy of that family on the backend (its ``open_engine`` starts
+the engine); a new engine or a new family adds lines here."""
 
 
 def arithmetic_for(backend: str, precision: str) -> Arithmetic:
@@ -56,46 +51,40 @@ def arithmetic_for(backend: str, precision: str) -> Arithmetic:
     return words[precision]
 
 
-def backend_class(backend: str) -> type[Backend]:
-    """The :class:`~snnkart.backends.backend.Backend` subclass of ``backend``."""
-    if backend not in BACKEND_CLASSES:
+def backend_class(backend: str, family: str = "lif") -> type[RunningPolicy]:
+    """The class running a policy of ``family`` on ``backend``."""
+    if backend not in PRECISIONS:
         raise DeployError(
             f"unknown backend {backend!r}{did_you_mean(backend, BACKENDS)}; choose one of "
             f"{', '.join(BACKENDS)}"
         )
-    module, name = BACKEND_CLASSES[backend].split(":")
-    cls: type[Backend] = getattr(importlib.import_module(module), name)
+    if (backend, family) not in ENGINES:
+        runs = [b for b, f in ENGINES if f == family]
+        raise DeployError(f"{backend} runs no {family} policy; choose {' or '.join(runs)}")
+    module, name = ENGINES[backend, family].split(":")
+    cls: type[RunningPolicy] = getattr(importlib.import_module(module), name)
     return cls
 
 
 def make_backend(
-    policy: str | Path | LoadedPolicy | SigmaDeltaPolicy,
-    backend: str,
-    arithmetic: Arithmetic,
-    seed: int = 0,
-) -> AnyBackend:
-    """``backend`` running ``policy`` in ``arithmetic`` (already checked by
-    :func:`arithmetic_for`): the LIF chain's backend, or the sigma-delta one."""
-    if not isinstance(policy, LoadedPolicy | SigmaDeltaPolicy):
+    policy: str | Path | Opened, backend: str, arithmetic: Arithmetic, seed: int = 0
+) -> RunningPolicy:
+    """``backend`` running ``policy`` (a path, or a policy :func:`~snnkart.backends.loading.
+    open_policy` read) in ``arithmetic`` (already checked by :func:`arithmetic_for`)."""
+    if isinstance(policy, str | Path):
         policy = open_policy(policy)
-    if isinstance(policy, LoadedPolicy):
-        return backend_class(backend)(policy, arithmetic, seed)
-    if backend not in SIGMA_DELTA_CLASSES:
-        backend_class(backend)  # raises the error naming the backends
-    if arithmetic == "float32":
+    cls = backend_class(backend, policy.family)
+    if arithmetic not in cls.arithmetics:
+        words = [w for w, a in PRECISIONS[backend].items() if a in cls.arithmetics]
         raise DeployError(
-            "a sigma-delta policy runs in Lava's arithmetics only: --precision fixed or float"
+            f"a {policy.family.replace('_', '-')} policy runs on {backend} in "
+            f"{' or '.join(cls.arithmetics)}, not {arithmetic}: --precision {' or '.join(words)}"
         )
-    module, name = SIGMA_DELTA_CLASSES[backend].split(":")
-    cls: type[SigmaDeltaBackend] = getattr(importlib.import_module(module), name)
     return cls(policy, arithmetic, seed)
 
 
 def open_backend(
-    policy: str | Path | LoadedPolicy | SigmaDeltaPolicy,
-    backend: str,
-    precision: str,
-    seed: int = 0,
-) -> AnyBackend:
+    policy: str | Path | Opened, backend: str, precision: str, seed: int = 0
+) -> RunningPolicy:
     """The backend ``backend`` running ``policy`` in the arithmetic ``precision`` asks for."""
     return make_backend(policy, backend, arithmetic_for(backend, precision), seed)

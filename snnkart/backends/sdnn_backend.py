@@ -28,7 +28,7 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-from snnkart.backends.backend import EngineOwner
+from snnkart.backends.backend import RunningPolicy
 from snnkart.backends.base import Arithmetic
 from snnkart.backends.loading import open_policy
 from snnkart.backends.sdnn_counts import SigmaDeltaCounter, SigmaDeltaStep, SigmaDeltaTotals
@@ -106,24 +106,24 @@ class SigmaDeltaCodec:
         return encoding.decode(out, self.manifest.action_mode)
 
 
-class SigmaDeltaBackend(EngineOwner):
-    """A running sigma-delta policy: ``step(obs)`` encodes on the host, runs one env step on
-    the engine, counts it and returns the window and the readout; ``predict`` the action.
-    Subclasses open their engine in :meth:`open_engine`."""
+class SigmaDeltaBackend(RunningPolicy):
+    """The sigma-delta family's running policy: ``step(obs)`` encodes on the host, runs one env
+    step (``rows`` Lava steps, input held) on the engine, counts it and returns the window and
+    the readout. Subclasses open their engine in :meth:`open_engine`."""
 
-    name: ClassVar[str]
+    arithmetics: ClassVar[tuple[Arithmetic, ...]] = ("fixed", "float64")  # Lava's models
     float32_form: ClassVar[bool] = False  # no float32 reference (Lava's models are float64)
+    records_inputs: ClassVar[bool] = False  # deploy.json alone
     fixed = None  # no LIF quantisation record: the block's units are the quantisation
 
     def __init__(self, policy: SigmaDeltaPolicy, arithmetic: Arithmetic, seed: int = 0) -> None:
-        if arithmetic not in ("fixed", "float64"):
+        if arithmetic not in self.arithmetics:
             raise DeployError(
                 f"a sigma-delta policy runs in fixed or float64 (Lava's models), not {arithmetic}"
             )
         self.policy, self.manifest, self.block = policy, policy.manifest, policy.block
         self.arithmetic: Arithmetic = arithmetic
         self.codec = SigmaDeltaCodec(policy, arithmetic)
-        self.raster_sizes = policy.sizes
         names = ("input", *(la.node for la in self.block.layers), self.block.readout_node)
         self.counts = SigmaDeltaTotals(names, self.block.rows, self.block.num_message_bits)
         chain_weights = SigmaDeltaChain(policy.spec(arithmetic)).weights
@@ -131,6 +131,10 @@ class SigmaDeltaBackend(EngineOwner):
             chain_weights, self.block.rows, self.block.num_message_bits
         )
         self.engine: SigmaDeltaEngine = self.open_engine(policy, arithmetic)
+
+    @property
+    def raster_sizes(self) -> tuple[int, ...]:
+        return self.policy.sizes
 
     def open_engine(self, policy: SigmaDeltaPolicy, arithmetic: Arithmetic) -> SigmaDeltaEngine:
         raise NotImplementedError
@@ -150,16 +154,6 @@ class SigmaDeltaBackend(EngineOwner):
         counts = self.counter.count(raster, x)
         self.counts.add(counts)
         return SigmaDeltaWindow(raster, raster, sigma, counts), self.codec.readout(sigma)
-
-    def normalise(self, obs: np.ndarray) -> np.ndarray:
-        return self.codec.normalise(obs)
-
-    def readout(self, obs: np.ndarray) -> np.ndarray:
-        """The readout vector (logits or action means) for one observation."""
-        return self.step(obs)[1]
-
-    def predict(self, obs: np.ndarray) -> Any:
-        return self.codec.decode(self.readout(obs))
 
     def parity_references(self) -> tuple[Arithmetic | None, Arithmetic | None]:
         """The same-arithmetic numpy reference (None for the reference itself); no float32

@@ -12,13 +12,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from snnkart.backends.base import Arithmetic
 from snnkart.backends.network import _chain_order
 from snnkart.backends.sigma_delta import SigmaDeltaSpec, spec_from_block
+from snnkart.contract.deploy_record import NetworkShape
 from snnkart.contract.manifest import Manifest
 from snnkart.contract.sigma_delta import SigmaDeltaBlock
 from snnkart.errors import NIRFileError, UnsupportedGraphError
@@ -38,6 +39,7 @@ class SigmaDeltaPolicy:
     block: SigmaDeltaBlock
     weights: tuple[np.ndarray, ...]
     biases: tuple[np.ndarray, ...]
+    family: ClassVar[str] = "sigma_delta"
 
     @property
     def readout_bias(self) -> np.ndarray:
@@ -54,6 +56,12 @@ class SigmaDeltaPolicy:
     def num_steps(self) -> int:
         """Policy steps per env step: 1 (the block's ``rows`` Lava steps compute it)."""
         return self.manifest.num_steps
+
+    def shape(self) -> NetworkShape:
+        """The chain's shape, as the deploy record keeps it: the input, the SigmaDelta layers
+        and the readout."""
+        n_in, *hidden, n_out = self.sizes
+        return NetworkShape(n_in=n_in, sizes=tuple(hidden), n_out=n_out)
 
     def spec(self, arithmetic: Arithmetic) -> SigmaDeltaSpec:
         """The chain in ``arithmetic`` (``fixed`` or ``float64``)."""

@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Callable, Iterator
-from typing import Any
+from collections.abc import Callable, Iterator, Mapping
 
 from rich.console import Console
 from rich.progress import (
@@ -17,6 +16,8 @@ from rich.progress import (
     TimeElapsedColumn,
     TimeRemainingColumn,
 )
+
+from snnkart.contract.report_record import lif_report, sd_report
 
 
 def fmt(value: float | None, spec: str = ".2f") -> str:
@@ -48,7 +49,9 @@ class ConsoleReporter:
             yield _Task(bar, main, sub)
 
     @contextlib.contextmanager
-    def training(self, total: int, completed: int) -> Iterator[Callable[[dict[str, Any]], None]]:
+    def training(
+        self, total: int, completed: int
+    ) -> Iterator[Callable[[Mapping[str, float | None]], None]]:
         if not self.console.is_terminal:
             yield self._log_lines(total)
             return
@@ -65,10 +68,10 @@ class ConsoleReporter:
         with Progress(*columns, console=self.console) as bar:
             task = bar.add_task("PPO", total=total, completed=completed, sps="-", ret="-", fin=0)
 
-            def update(record: dict[str, Any]) -> None:
+            def update(record: Mapping[str, float | None]) -> None:
                 bar.update(
                     task,
-                    completed=record["global_step"],
+                    completed=_count(record, "global_step"),
                     sps=f"{record['charts/SPS']:,.0f}",
                     ret=fmt(record["charts/episodic_return"]),
                     fin=f"{record['charts/cumulative_finishes']:,}",
@@ -76,13 +79,13 @@ class ConsoleReporter:
 
             yield update
 
-    def _log_lines(self, total: int) -> Callable[[dict[str, Any]], None]:
+    def _log_lines(self, total: int) -> Callable[[Mapping[str, float | None]], None]:
         """A plain line every ``LOG_EVERY`` iterations (and at the first and the last): step,
         mean return, finished laps, steps per second, time since the start."""
         start = time.monotonic()
 
-        def update(record: dict[str, Any]) -> None:
-            step, iteration = record["global_step"], record["iteration"]
+        def update(record: Mapping[str, float | None]) -> None:
+            step, iteration = _count(record, "global_step"), _count(record, "iteration")
             if iteration % LOG_EVERY and iteration != 1 and step < total:
                 return
             self.message(
@@ -92,6 +95,13 @@ class ConsoleReporter:
             )
 
         return update
+
+
+def _count(record: Mapping[str, float | None], key: str) -> int:
+    """A counter of an iteration's metrics record (``global_step``, ``iteration``: never None)."""
+    value = record[key]
+    assert value is not None, key
+    return int(value)
 
 
 class _Task:
@@ -108,21 +118,22 @@ class _Task:
             self.bar.advance(self.sub)
 
 
-def print_headline(report: dict[str, Any], rows: list[dict[str, str]]) -> None:
+def print_headline(report: Mapping[str, object], rows: list[dict[str, str]]) -> None:
     """The energy report's headline: a warning when the SNN does not drive, then the table of
     the primary ANN's comparisons (all of them are in report.md)."""
     from rich.table import Table
 
     console = Console()
-    if not report["drives"]:
-        rate = report["snn"]["task"]["success_rate"]
+    lif = lif_report(report)
+    if not lif["drives"]:
+        rate = lif["snn"]["task"]["success_rate"]
         console.print(
             f"[bold red]WARNING: the spiking policy does not drive (success {rate:.0%} < 80 %): "
             "its energy numbers are not a result.[/]"
         )
-    primary = "run" if "run" in report["ann"] else "same_width"
-    ann = report["ann"][primary]
-    snn_task, ann_task = report["snn"]["task"], ann["task"]
+    primary = "run" if "run" in lif["ann"] else "same_width"
+    ann = lif["ann"][primary]
+    snn_task, ann_task = lif["snn"]["task"], ann["task"]
     ann_rate = f"{ann_task['success_rate']:.0%}" if ann_task else "not run"
     if ann_task and ann_task.get("int8"):
         ann_rate += f", int8 ANN {ann_task['int8']['success_rate']:.0%} (measured)"
@@ -141,14 +152,15 @@ def print_headline(report: dict[str, Any], rows: list[dict[str, str]]) -> None:
     console.print(table)
 
 
-def print_sd_answer(report: dict[str, Any], answer: str, rows: list[dict[str, str]]) -> None:
+def print_sd_answer(report: Mapping[str, object], answer: str, rows: list[dict[str, str]]) -> None:
     """A sigma-delta report's headline: the warning when it does not drive, the goal's answer
     (``answer``, the report's first screen) and the energy per chip (``rows``)."""
     from rich.table import Table
 
     console = Console()
-    if not report["drives"]:
-        rate = report["task"]["success_rate"]
+    sd = sd_report(report)
+    if not sd["drives"]:
+        rate = sd["task"]["success_rate"]
         console.print(f"[bold red]WARNING: the sigma-delta policy does not drive (success "
                       f"{rate:.0%} < 80 %): its energy numbers are not a result.[/]")  # fmt: skip
     console.print(answer)

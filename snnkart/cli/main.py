@@ -11,6 +11,7 @@ from typing import Annotated
 
 import typer
 
+from snnkart.backends.defaults import BACKENDS, NIR_BACKENDS, default_help, precision_help
 from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.export import export
 from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
@@ -23,7 +24,7 @@ from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
 from snnkart.cli.track import track_app
-from snnkart.errors import CheckpointWriteError, SnnkartError, did_you_mean
+from snnkart.errors import CheckpointWriteError, SnnkartError
 from snnkart.rl import kinds
 
 app = typer.Typer(
@@ -268,9 +269,15 @@ _VideoEpisodesOption = Annotated[
 ]
 
 
+_PrecisionOption = Annotated[
+    str | None,
+    typer.Option(help=precision_help(BACKENDS), show_default=default_help()),
+]
+
+
 @app.command(name="eval")
 def eval_(
-    run_dir: Annotated[Path, typer.Argument(help="a training run directory")],
+    run_dir: Annotated[Path, typer.Argument(help="a run directory, a checkpoint or a policy.nir")],
     episodes: Annotated[int, typer.Option(help="number of seeded episodes")] = 20,
     seed: Annotated[int, typer.Option(help="seed of the first episode")] = 10_000,
     checkpoint: Annotated[str | None, typer.Option(help=CHECKPOINT_HELP)] = None,
@@ -283,9 +290,7 @@ def eval_(
     backend: Annotated[
         str, typer.Option(help="torch (the trained network), nir-ref or lava-sim")
     ] = "torch",
-    precision: Annotated[
-        str, typer.Option(help="nir-ref/lava-sim arithmetic (see `snnkart deploy`)")
-    ] = "fixed",
+    precision: _PrecisionOption = None,
     env: Annotated[
         str | None,
         typer.Option("--env", "-e", help="a NIR file's env (default: the manifest's)"),
@@ -302,43 +307,30 @@ def eval_(
     directory is exported to NIR first. The policy runs on the track it was trained on
     (carried in its checkpoint and manifest), or on ``--track``."""
     from snnkart.app.evaluate import run_eval, run_eval_exported
+    from snnkart.app.opener import choose
 
+    target = guard(lambda: choose(run_dir, backend, precision, checkpoint, sigma_delta=sigma_delta))
+    where = target.run_dir or target.path
     if backend != "torch":
-        from snnkart.eval.request import DeployRequest
-
-        _check_backend(backend)
-        request = guard(
-            lambda: DeployRequest(run_dir, backend, precision, episodes, seed, env, track, out)
-        )
+        request = guard(lambda: target.deploy_request(episodes, seed, env, track, out))
         guard(
             lambda: run_eval_exported(
-                run_dir, checkpoint, request, ConsoleReporter(), sigma_delta=sigma_delta
+                where, target.checkpoint, request, ConsoleReporter(), sigma_delta=sigma_delta
             ),
             _deploy_interrupted(backend),
         )
         return
     if episodes < 1:
         fail(f"--episodes must be >= 1, got {episodes}")
-    if sigma_delta:
-        fail("--sigma-delta converts a run for a spiking backend: add --backend nir-ref")
-    if run_dir.suffix == ".nir":
-        fail("a .nir file runs on --backend nir-ref or lava-sim, not torch")
     if env is not None:
         fail("--env is for NIR files; a run directory is evaluated on the env it trained on")
-    guard(lambda: run_eval(run_dir, episodes, seed, checkpoint, render, video, out,
-                           ConsoleReporter(), track, video_episodes),
-          "no results were written")  # fmt: skip
-
-
-def _check_backend(backend: str) -> None:
-    """A backend eval runs a policy on: torch or a spiking one, else a one-line error."""
-    from snnkart.eval.request import BACKENDS
-
-    if backend not in BACKENDS:
-        from snnkart.app.api import BACKENDS as EVAL_BACKENDS  # torch too
-
-        fail(f"unknown backend {backend!r}{did_you_mean(backend, EVAL_BACKENDS)}; choose torch, "
-             "nir-ref or lava-sim")  # fmt: skip
+    reporter, which = ConsoleReporter(), target.checkpoint
+    guard(
+        lambda: run_eval(
+            where, episodes, seed, which, render, video, out, reporter, track, video_episodes
+        ),
+        "no results were written",
+    )
 
 
 def _deploy_interrupted(backend: str) -> str:
@@ -351,11 +343,8 @@ def deploy(
     nir_file: Annotated[Path, typer.Argument(help="policy.nir (its manifest must be beside it)")],
     backend: Annotated[str, typer.Option(help="lava-sim or nir-ref")] = "lava-sim",
     precision: Annotated[
-        str,
-        typer.Option(
-            help="lava-sim: fixed (bit-accurate Loihi) or float; nir-ref: float32, float64 or fixed"
-        ),
-    ] = "fixed",
+        str | None, typer.Option(help=precision_help(), show_default=default_help())
+    ] = None,
     env: Annotated[str | None, typer.Option("--env", "-e", help="default: the manifest's")] = None,
     track: Annotated[
         str | None, typer.Option("--track", "-t", help="default: the manifest's")
@@ -375,17 +364,21 @@ def deploy(
     """Run an exported policy in closed loop on Lava's simulated Loihi (or the reference),
     checked step by step against the numpy reference; print and write metrics and counts."""
     from snnkart.app.deploy import run_deploy_reported
-    from snnkart.eval.request import DeployRequest
+    from snnkart.app.opener import choose
 
+    target = guard(lambda: choose(nir_file, backend, precision, backends=NIR_BACKENDS))
+    if target.nir_file is None:
+        fail(
+            f"deploy runs an exported policy.nir; evaluate the run {nir_file} with: "
+            f"snnkart eval {nir_file} --backend {backend}"
+        )
     if out is None:
-        out = nir_file.parent / f"deploy-{backend}-{precision}"
+        out = nir_file.parent / f"deploy-{backend}-{target.precision}"
     else:
         from snnkart.report.document import REPORT_FILES  # a report may share the directory
 
         refuse_other_files(out, {"deploy.json", *REPORT_FILES}, force)
-    request = guard(
-        lambda: DeployRequest(nir_file, backend, precision, episodes, seed, env, track, out)
-    )
+    request = guard(lambda: target.deploy_request(episodes, seed, env, track, out))
     guard(lambda: run_deploy_reported(request, ConsoleReporter()), _deploy_interrupted(backend))
 
 

@@ -8,6 +8,12 @@ from typing import Annotated, Any
 
 import typer
 
+from snnkart.backends.defaults import (
+    NIR_BACKENDS,
+    default_help,
+    precision_help,
+    precision_word,
+)
 from snnkart.cli.guard import guard
 
 nir_app = typer.Typer(
@@ -102,10 +108,7 @@ def run(
     steps: Annotated[int | None, typer.Option(help="run the first N steps (default: all)")] = None,
     backend: Annotated[str, typer.Option(help="nir-ref or lava-sim")] = "nir-ref",
     precision: Annotated[
-        str | None,
-        typer.Option(
-            help="nir-ref: float32 (default), float64 or fixed; lava-sim: float or fixed (default)"
-        ),
+        str | None, typer.Option(help=precision_help(), show_default=default_help())
     ] = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help=".npz: every layer's spikes and readout")
@@ -121,15 +124,36 @@ def run(
     discretisation: DiscOpt = None,
 ) -> None:
     """Run a graph open loop on given input from zero state: every layer's spikes and the
-    readout, optionally checked against the reference (exit 4 if not bit-exact)."""
-    from snnkart.app.nir_tools import run_nir_run
+    readout, optionally checked against the reference (exit 4 if not bit-exact). It runs in
+    fixed point unless --precision says otherwise, as every backend does by default."""
+    word = guard(lambda: precision_word(backend, precision, NIR_BACKENDS))
+    options = (steps, backend, word, out, check, dt, discretisation)
+    guard(lambda: _run(graph, input_file, options, precision is None))
 
-    chosen = precision or ("fixed" if backend == "lava-sim" else "float32")
-    guard(
-        lambda: run_nir_run(
-            graph, input_file, steps, backend, chosen, out, check, dt, discretisation, _show
-        )
-    )
+
+def _run(graph: Path, input_file: Path, options: tuple[Any, ...], defaulted: bool) -> None:
+    """``nir run``; when the default fixed point refuses a graph that the reference runs in
+    float32 (a graph from another library whose neurons Lava's cannot express), the error
+    names that fix."""
+    from snnkart.app.nir_tools import load_open_chain, run_nir_run
+    from snnkart.backends.defaults import TABLE
+    from snnkart.errors import SnnkartError, UnsupportedGraphError
+
+    steps, backend, word, out, check, dt, discretisation = options
+    try:
+        run_nir_run(graph, input_file, steps, backend, word, out, check, dt, discretisation, _show)
+    except UnsupportedGraphError as exc:
+        words = TABLE[backend].precisions
+        floats = [w for w, a in words.items() if a == "float32"]
+        if not defaulted or words[word] != "fixed" or not floats:
+            raise
+        try:
+            load_open_chain(graph, dt, discretisation)
+        except SnnkartError:
+            raise exc from None
+        raise UnsupportedGraphError(
+            f"{exc} (in fixed point, {backend}'s default; --precision {floats[0]} runs it)"
+        ) from exc
 
 
 def _show(summary: dict[str, Any]) -> None:

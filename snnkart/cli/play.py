@@ -13,7 +13,7 @@ functions of :class:`Keys`, so they can be used and tested without pygame.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -79,7 +79,7 @@ KEY_HELP: dict[str, str] = {
 }
 
 
-def episode_outcome(info: dict[str, Any], truncated: bool) -> str:
+def episode_outcome(info: Mapping[str, object], truncated: bool) -> str:
     """How an episode ended, from the ``info`` of its last step."""
     if info["lap_finished"]:
         return f"finished in {info['lap_time']:.2f} s"

@@ -4,7 +4,7 @@ policy."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
@@ -69,7 +69,7 @@ def report(
     _print(record)
 
 
-def _print(record: dict[str, Any]) -> None:
+def _print(record: dict[str, object]) -> None:
     """The report's headline: a sigma-delta report's answer, else the LIF energy table."""
     from snnkart.report.document import headline
 

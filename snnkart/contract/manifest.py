@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 from snnkart.contract.sigma_delta import SigmaDeltaBlock
 from snnkart.errors import ManifestError
@@ -59,9 +58,9 @@ class Manifest:
     obs_high: tuple[float, ...]
     readout_node: str
     action_mode: str  # "discrete": argmax; "continuous": clip to [-1, 1]
-    env: dict[str, Any]
+    env: dict[str, object]  # the env spec it was trained in (snnkart.envs.spec.env_spec)
     versions: dict[str, str]
-    training: dict[str, Any] = field(default_factory=dict)
+    training: dict[str, object] = field(default_factory=dict)  # run, step, ... (export)
     encoding_rng: str | None = None  # rate encoding: how every backend draws the input spikes
     track: dict[str, str] | None = None  # the trained track (v2; None in v1 manifests)
     population: int | None = None  # population encoding: receptive fields per observation

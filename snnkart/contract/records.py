@@ -110,7 +110,7 @@ class RecordKind:
 def to_data(record: Any) -> Any:
     """A record (or any value inside one) as JSON-able data, keys in field order."""
     if dataclasses.is_dataclass(record) and not isinstance(record, type):
-        out: dict[str, Any] = {}
+        out: dict[str, object] = {}
         for f in dataclasses.fields(record):
             value = getattr(record, f.name)
             test = f.metadata.get("omit_if")
@@ -223,18 +223,19 @@ class Record:
         return cls.from_json(text, str(path))
 
 
-def json_schema(cls: type, kind: RecordKind | None = None) -> dict[str, Any]:
+def json_schema(cls: type, kind: RecordKind | None = None) -> dict[str, object]:
     """The JSON Schema (draft 2020-12) of a record class, as shipped in ``*.schema.json``."""
     body = _schema(cls)
     if kind is None:
         return body
-    if "schema" in body["properties"]:
-        body["properties"]["schema"] = {"const": kind.tag}
+    properties = body["properties"]
+    if isinstance(properties, dict) and "schema" in properties:
+        properties["schema"] = {"const": kind.tag}
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", "$id": kind.tag,
             "title": f"snnkart {kind.name} record ({kind.name}.json)", **body}  # fmt: skip
 
 
-def _schema(tp: Any) -> dict[str, Any]:
+def _schema(tp: Any) -> dict[str, object]:
     origin, args = typing.get_origin(tp), typing.get_args(tp)
     if tp is Any:
         return {}

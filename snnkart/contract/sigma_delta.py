@@ -97,7 +97,7 @@ class SigmaDeltaBlock:
         """Lava steps per env step under the ``held`` schedule."""
         return self.depth + 1
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, object]:
         return asdict(self)
 
     @classmethod

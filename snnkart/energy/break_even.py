@@ -18,10 +18,17 @@ the width. Any other term the pricing builds from the counts scales with them.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import Any
+from typing import cast
 
+from snnkart.contract.energy_record import (
+    BreakEven,
+    DensityBreakEven,
+    StepsBreakEven,
+    WidthBreakEven,
+    WidthSpan,
+)
 from snnkart.energy.counts import AnnCounts, SnnCounts, host_ops
 from snnkart.energy.pricing import Comparison
 
@@ -92,7 +99,7 @@ def _ratio(cmp: Comparison) -> float | None:
     return e_snn / e_ann if e_ann > 0 else None
 
 
-def _crossing(f: Any, lo: int, hi: int) -> tuple[int, float]:
+def _crossing(f: Callable[[int], float], lo: int, hi: int) -> tuple[int, float]:
     """Bisection between integers ``lo < hi`` where ``f`` changes sign: the last integer on
     ``lo``'s side, and the crossing interpolated linearly between it and the next."""
     f_lo = f(lo) < 0
@@ -106,7 +113,7 @@ def _crossing(f: Any, lo: int, hi: int) -> tuple[int, float]:
     return lo, lo + (a / (a - b) if a != b else 0.0)
 
 
-def break_even_steps(cmp: Comparison, steps_max: int = STEPS_MAX) -> dict[str, Any]:
+def break_even_steps(cmp: Comparison, steps_max: int = STEPS_MAX) -> StepsBreakEven:
     """The largest T at which the SNN (today's firing rates) still costs less than the ANN:
     its energy grows linearly in T, the ANN's does not."""
 
@@ -115,24 +122,26 @@ def break_even_steps(cmp: Comparison, steps_max: int = STEPS_MAX) -> dict[str, A
 
     today = cmp.snn.net.num_steps
     curve = sorted({today, *(2**k for k in range(8))})
-    out: dict[str, Any] = {
-        "today": today,
-        "ratio_at": {str(s): _ratio(replace(cmp, snn=rescaled(cmp.snn, num_steps=s)))
-                     for s in curve},
-    }  # fmt: skip
+    ratio_at = {str(s): _ratio(replace(cmp, snn=rescaled(cmp.snn, num_steps=s))) for s in curve}
     if excess(1) >= 0:
-        at_one = _times(out["ratio_at"]["1"])
-        return {**out, "num_steps": None, "largest": None, "reason": f"even at T = 1 the SNN "
-                f"costs {at_one} the ANN: no T breaks even"}  # fmt: skip
+        at_one = _times(ratio_at["1"])
+        reason = f"even at T = 1 the SNN costs {at_one} the ANN: no T breaks even"
+        return StepsBreakEven(
+            today=today, ratio_at=ratio_at, num_steps=None, largest=None, reason=reason
+        )
     if excess(steps_max) < 0:
-        return {**out, "num_steps": None, "largest": steps_max, "reason": "the SNN costs less "
-                f"at every T up to {steps_max}"}  # fmt: skip
+        reason = f"the SNN costs less at every T up to {steps_max}"
+        return StepsBreakEven(
+            today=today, ratio_at=ratio_at, num_steps=None, largest=steps_max, reason=reason
+        )
     largest, crossing = _crossing(excess, 1, steps_max)
-    return {**out, "num_steps": crossing, "largest": largest, "reason": f"the SNN costs less "
-            f"than the ANN for T <= {largest} at today's firing rates"}  # fmt: skip
+    reason = f"the SNN costs less than the ANN for T <= {largest} at today's firing rates"
+    return StepsBreakEven(
+        today=today, ratio_at=ratio_at, num_steps=crossing, largest=largest, reason=reason
+    )
 
 
-def break_even_width(cmp: Comparison, widths: Sequence[int] = WIDTHS) -> dict[str, Any]:
+def break_even_width(cmp: Comparison, widths: Sequence[int] = WIDTHS) -> WidthBreakEven:
     """The widths (neurons of the SNN's widest layer; every hidden layer of both networks
     grown alike) at which the SNN costs less, at today's firing rates: both energies grow with
     the square of the width, so the SNN can win below a width, above one, between two, at
@@ -160,7 +169,7 @@ def break_even_width(cmp: Comparison, widths: Sequence[int] = WIDTHS) -> dict[st
         "today": today,
         "scanned": [grid[0], grid[-1]],
         "crossings": crossings,
-        "cheaper": [{"from": a, "to": b} for a, b in cheaper],
+        "cheaper": [WidthSpan({"from": a, "to": b}) for a, b in cheaper],
         "ratio_at": {str(w): _ratio(at_width(cmp, w)) for w in shown},
         "reason": _width_reason(cheaper, grid, _ratio(at_width(cmp, grid[-1]))),
     }
@@ -181,7 +190,7 @@ def _width_reason(cheaper: list[list[int | None]], grid: list[int], limit: float
     return "the SNN costs less than the ANN at widths " + " and ".join(spans)
 
 
-def break_even(cmp: Comparison) -> dict[str, Any]:
+def break_even(cmp: Comparison) -> BreakEven:
     """The break-even in spike density (:meth:`Comparison.break_even`), in T and in width."""
-    return {**cmp.break_even(), "num_steps": break_even_steps(cmp),
-            "width": break_even_width(cmp)}  # fmt: skip
+    density = cast(DensityBreakEven, cmp.break_even())  # the record Comparison.break_even writes
+    return {**density, "num_steps": break_even_steps(cmp), "width": break_even_width(cmp)}

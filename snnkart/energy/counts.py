@@ -22,7 +22,17 @@ from dataclasses import dataclass, field
 
 from snnkart.contract.deploy_record import Counts, DeployRecord, StepCounts
 from snnkart.contract.link import link_bits
+from snnkart.energy.activity import Activity, HostOp
+from snnkart.energy.placement import Placement
+from snnkart.energy.profiles import Profile
 from snnkart.errors import ReportError
+
+
+def placement(sizes: tuple[int, ...], chip: Profile) -> Placement | None:
+    """Layers of ``sizes`` neurons placed on ``chip`` (None for a chip without placement)."""
+    if not chip.neurons_per_core:
+        return None
+    return Placement.of(sizes, chip.neurons_per_core, chip.cores_per_tile)
 
 
 @dataclass(frozen=True)
@@ -92,15 +102,6 @@ class Network:
         n1, last = self.sizes[0], self.sizes[-1]
         readout = (last * self.n_out + self.n_out) if self.readout else 0
         return self.n_in * n1 + n1 + readout
-
-
-@dataclass(frozen=True)
-class HostOp:
-    """One item of host-side work per inference: what it is, the operation, how many."""
-
-    what: str
-    op: str  # a digital profile's operation: mac, add, mult, weight_read
-    count: float
 
 
 def host_ops(net: Network, fixed_point: bool = False) -> list[HostOp]:
@@ -253,6 +254,57 @@ class SnnCounts:
         )  # fmt: skip
 
     @property
+    def host_parameters(self) -> int:
+        return self.net.host_parameters
+
+    def host_work(self) -> tuple[HostOp, ...]:
+        return self.host
+
+    def prices_for(self, chip: Profile) -> Profile:
+        return chip  # binary spikes: the chip's own prices
+
+    def chip_activity(self, chip: Profile) -> list[Activity]:
+        """Per layer: synaptic ops (spikes x fan-out), neuron updates (N x T) and spikes, and
+        apart from them the pipeline's fill/drain; routing between placed layers; the link."""
+        items = []
+        for i, n in enumerate(self.net.sizes):
+            layer = f"layer {i + 1} ({n} neurons)"
+            items += [
+                Activity("synaptic ops", f"{layer}: spikes x fan-out", self.synops[i], "synaptic_op"),
+                Activity("neuron updates", f"{layer}: N x T", self.neuron_updates[i], "neuron_update"),
+                Activity("spikes", f"{layer}: spikes", self.spikes[i], "spike"),
+            ]  # fmt: skip
+            if self.overhead_neuron_updates[i] or self.overhead_spikes[i]:
+                fill = f"{layer}: pipeline fill/drain"
+                items += [
+                    Activity("synaptic ops", fill, self.overhead_synops[i], "synaptic_op"),
+                    Activity("neuron updates", fill, self.overhead_neuron_updates[i], "neuron_update"),
+                    Activity("spikes", fill, self.overhead_spikes[i], "spike"),
+                ]  # fmt: skip
+        return items + self._routing(chip) + self._link(chip)
+
+    def _routing(self, chip: Profile) -> list[Activity]:
+        where = placement(self.net.sizes, chip)
+        if "hop" not in chip.prices or where is None:
+            return []
+        items = []
+        for i, hops in enumerate(where.hops_per_spike[:-1]):
+            spikes = self.spikes[i] + self.overhead_spikes[i]
+            what = (f"layer {i + 1} -> {i + 2}: spikes x {hops:g} tile hops "
+                    f"({where.cores[i]} -> {where.cores[i + 1]} cores)")  # fmt: skip
+            items.append(Activity("routing", what, spikes * hops, "hop"))
+        return items
+
+    def _link(self, chip: Profile) -> list[Activity]:
+        if "io_bit" not in chip.prices:
+            return []
+        (bits_in, bits_out), sizes = self.link_bits, self.net.sizes
+        return [
+            Activity("host link", f"in: T x {sizes[0]} input currents", bits_in, "io_bit"),
+            Activity("host link", f"out: T x {sizes[-1]} output spike flags", bits_out, "io_bit"),
+        ]
+
+    @property
     def steps_per_episode(self) -> float:
         return self.env_steps / self.episodes
 
@@ -320,6 +372,17 @@ class AnnCounts:
     @property
     def parameters(self) -> int:
         return self.macs + sum(self.widths[1:])
+
+    host_parameters = parameters
+
+    def host_work(self) -> list[HostOp]:
+        return self.ops()
+
+    def prices_for(self, chip: Profile) -> Profile:
+        return chip
+
+    def chip_activity(self, chip: Profile) -> list[Activity]:
+        return []  # an ANN runs on the host alone
 
     def ops(self) -> list[HostOp]:
         """Everything per inference, as digital operations (the same normalisation and

@@ -26,11 +26,20 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from snnkart.contract.energy_record import (
+    ChipGoal,
+    Goal,
+    GoalCheck,
+    InTheWay,
+    PartEnergy,
+    SanafeCheck,
+    SanafeGoal,
+    Spread,
+)
 from snnkart.energy.counts import AnnCounts, SnnCounts
-from snnkart.energy.pricing import CONTROL_PERIOD_S, Term, ann_terms, snn_terms, static_terms, total
+from snnkart.energy.pricing import CONTROL_PERIOD_S, Term, ann_terms, static_terms, terms, total
 from snnkart.energy.profiles import Profile
 from snnkart.energy.sd_counts import SigmaDeltaCounts
-from snnkart.energy.sd_pricing import sd_terms, with_graded_prices
 from snnkart.energy.uncertainty import SAMPLES, SEED, joint
 
 FP32 = "horowitz45_fp32_sram"
@@ -58,7 +67,7 @@ def _nj(x: float | None) -> str:
     return "-" if x is None else f"{x / 1e3:.3g} nJ"
 
 
-def check(p: Priced, factor: float, samples: int = SAMPLES, seed: int = SEED) -> dict[str, Any]:
+def check(p: Priced, factor: float, samples: int = SAMPLES, seed: int = SEED) -> GoalCheck:
     """One bound on one chip: the ratio's median and 90 % interval, and whether its whole
     interval is at most ``factor``."""
     j = joint(p.snn, p.ann, p.profiles, samples, seed)
@@ -71,11 +80,11 @@ def check(p: Priced, factor: float, samples: int = SAMPLES, seed: int = SEED) ->
 
 
 def in_the_way(p: Priced, factor: float, samples: int = SAMPLES,
-               seed: int = SEED) -> dict[str, Any]:  # fmt: skip
+               seed: int = SEED) -> InTheWay:  # fmt: skip
     """The part of the policy's energy whose removal alone lowers the ratio's 95th percentile
     most (module docstring), with the numbers."""
     parts = list(dict.fromkeys(t.part for t in p.snn))
-    rows = []
+    rows: list[PartEnergy] = []
     for part in parts:
         kept = [t for t in p.snn if t.part != part]
         alone = [t for t in p.snn if t.part == part]
@@ -100,8 +109,8 @@ def in_the_way(p: Priced, factor: float, samples: int = SAMPLES,
             "ratio_p95": now["ratio"]["p95"], "clears": clears, "text": text}  # fmt: skip
 
 
-def sanafe_check(snn_pj: float, ann_pj: dict[str, Any], baseline: str,
-                 factor: float) -> dict[str, Any]:  # fmt: skip
+def sanafe_check(snn_pj: float, ann_pj: Spread, baseline: str,
+                 factor: float) -> SanafeCheck:  # fmt: skip
     """One bound on SANA-FE's single energy ``snn_pj`` against the baseline's spread
     ``ann_pj`` (median, p05, p95): it holds when ``snn_pj <= factor x p05``."""
     low = ann_pj["p05"]
@@ -118,7 +127,7 @@ def _static(p: Priced, chip: str) -> float | None:
     return total(terms) if terms else None
 
 
-def _chip(priced: Sequence[Priced], chip: str, samples: int, seed: int) -> dict[str, Any]:
+def _chip(priced: Sequence[Priced], chip: str, samples: int, seed: int) -> ChipGoal:
     by = {p.baseline: p for p in priced if p.chip == chip}
     missing = [b for b, _ in BOUNDS if b not in by]
     if missing:
@@ -126,9 +135,9 @@ def _chip(priced: Sequence[Priced], chip: str, samples: int, seed: int) -> dict[
             f"the goal on {chip} needs the policy priced against {missing[0]}; price it there"
         )
     checks = [check(by[b], f, samples, seed) for b, f in BOUNDS]
-    out: dict[str, Any] = {"chip": chip, "holds": all(c["holds"] for c in checks),
-                           "checks": checks, "in_the_way": None,
-                           "static_pj": _static(by[BOUNDS[0][0]], chip)}  # fmt: skip
+    out: ChipGoal = {"chip": chip, "holds": all(c["holds"] for c in checks),
+                     "checks": checks, "in_the_way": None,
+                     "static_pj": _static(by[BOUNDS[0][0]], chip)}  # fmt: skip
     if not out["holds"]:
         worst = max(checks, key=lambda c: (c["ratio"]["p95"] or float("inf")) / c["factor"])
         out["in_the_way"] = in_the_way(by[worst["baseline"]], worst["factor"], samples, seed)
@@ -145,23 +154,24 @@ def decide(priced: Sequence[Priced], sanafe_pj: float | Mapping[str, float] | No
     host work is priced on the baseline's profile)."""
     main = _chip(priced, primary, samples, seed)
     named = [_chip(priced, chip, samples, seed) for chip in proxies]
-    sanafe = None
+    sanafe: SanafeGoal | None = None
     if sanafe_pj is not None:
         ann = {c["baseline"]: c["ann_pj"] for c in main["checks"]}
         per = sanafe_pj if isinstance(sanafe_pj, Mapping) else dict.fromkeys(ann, sanafe_pj)
         checks = [sanafe_check(per[b], ann[b], b, f) for b, f in BOUNDS]
         sanafe = {"holds": all(c["holds"] for c in checks), "checks": checks}
     holds = bool(main["holds"]) and (sanafe is None or bool(sanafe["holds"]))
-    return {
+    goal: Goal = {
         "rule": "policy/ANN ratio's 95th percentile <= 0.5 against the memory-inclusive fp32 "
         "ANN and <= 1 against the memory-inclusive int8 ANN (SANA-FE: its energy against the "
         "ANN's 5th percentile)",
         "primary": main, "proxies": named, "sanafe": sanafe, "holds": holds,
         "sanafe_run": sanafe is not None, "verdict": _verdict(main, named, sanafe, holds),
     }  # fmt: skip
+    return dict(goal)  # a plain dict: snnkart.app.report_sd hands it on as one
 
 
-def _verdict(main: dict[str, Any], named: list[dict[str, Any]], sanafe: dict[str, Any] | None,
+def _verdict(main: ChipGoal, named: list[ChipGoal], sanafe: SanafeGoal | None,
              holds: bool) -> str:  # fmt: skip
     tops = ", ".join(f"{c['ratio']['p95']:.3g}x the {c['baseline']} ANN" for c in main["checks"])
     head = (f"the goal {'holds' if holds else 'does not hold'} on {main['chip']} "
@@ -179,12 +189,9 @@ def _verdict(main: dict[str, Any], named: list[dict[str, Any]], sanafe: dict[str
 
 def priced_policy(policy: SigmaDeltaCounts | SnnCounts, chip: Profile, baseline: Profile,
                   ann: AnnCounts) -> Priced:  # fmt: skip
-    """A sigma-delta (:func:`sd_terms`) or LIF policy, stateful or not (:func:`snn_terms`), on
+    """A policy of any family (sigma-delta, LIF, stateful or not) priced by :func:`terms` on
     ``chip`` with its host work on ``baseline``, against ``ann`` on ``baseline`` (as the
     report prices a pair when no host profile is given)."""
-    if isinstance(policy, SigmaDeltaCounts):
-        snn, profiles = sd_terms(policy, chip, baseline), with_graded_prices(chip, policy)
-    else:
-        snn, profiles = snn_terms(policy, chip, baseline), chip
+    snn = terms(policy, chip, baseline)
     return Priced(chip.name, baseline.name, tuple(snn), tuple(ann_terms(ann, baseline)),
-                  (profiles, baseline))  # fmt: skip
+                  (policy.prices_for(chip), baseline))  # fmt: skip

@@ -23,8 +23,8 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
+from snnkart.energy.activity import Counted
 from snnkart.energy.counts import AnnCounts, HostOp, SnnCounts
-from snnkart.energy.placement import Placement
 from snnkart.energy.profiles import Profile, memory_row
 from snnkart.envs.constants import DT
 from snnkart.errors import ProfileError
@@ -80,54 +80,17 @@ def _digital(ops: Iterable[HostOp], profile: Profile, part: str, parameters: int
     return terms
 
 
-def placement(counts: SnnCounts, chip: Profile) -> Placement | None:
-    """The layers' placement on ``chip`` (None for a chip without one)."""
-    if not chip.neurons_per_core:
-        return None
-    return Placement.of(counts.net.sizes, chip.neurons_per_core, chip.cores_per_tile)
-
-
-def _chip(counts: SnnCounts, chip: Profile) -> list[Term]:
-    terms = []
-    for i, n in enumerate(counts.net.sizes):
-        layer = f"layer {i + 1} ({n} neurons)"
-        terms += [
-            _term("synaptic ops", f"{layer}: spikes x fan-out", counts.synops[i], chip, "synaptic_op"),
-            _term("neuron updates", f"{layer}: N x T", counts.neuron_updates[i], chip, "neuron_update"),
-            _term("spikes", f"{layer}: spikes", counts.spikes[i], chip, "spike"),
-        ]  # fmt: skip
-        if counts.overhead_neuron_updates[i] or counts.overhead_spikes[i]:
-            terms += [
-                _term("synaptic ops", f"{layer}: pipeline fill/drain", counts.overhead_synops[i], chip, "synaptic_op"),
-                _term("neuron updates", f"{layer}: pipeline fill/drain", counts.overhead_neuron_updates[i], chip, "neuron_update"),
-                _term("spikes", f"{layer}: pipeline fill/drain", counts.overhead_spikes[i], chip, "spike"),
-            ]  # fmt: skip
-    where = placement(counts, chip)
-    if "hop" in chip.prices and where is not None:
-        for i, hops in enumerate(where.hops_per_spike[:-1]):
-            spikes = counts.spikes[i] + counts.overhead_spikes[i]
-            what = f"layer {i + 1} -> {i + 2}: spikes x {hops:g} tile hops ({where.cores[i]} -> {where.cores[i + 1]} cores)"
-            terms.append(_term("routing", what, spikes * hops, chip, "hop"))
-    if "io_bit" in chip.prices:
-        bits_in, bits_out = counts.link_bits
-        net = counts.net
-        terms += [
-            _term("host link", f"in: T x {net.sizes[0]} input currents", bits_in, chip, "io_bit"),
-            _term("host link", f"out: T x {net.sizes[-1]} output spike flags", bits_out, chip, "io_bit"),
-        ]  # fmt: skip
-    return terms
-
-
-def snn_terms(counts: SnnCounts, chip: Profile, host: Profile) -> list[Term]:
-    """The SNN's dynamic energy per inference, term by term."""
-    return _chip(counts, chip) + _digital(
-        counts.host, host, "host compute", counts.net.host_parameters
-    )
+def terms(counts: Counted, chip: Profile, host: Profile) -> list[Term]:
+    """Any family's dynamic energy per inference, term by term: its chip activity priced on
+    ``chip`` (with the prices the family derives from it), its host work on ``host``."""
+    priced = counts.prices_for(chip)
+    on_chip = [_term(a.part, a.what, a.count, priced, a.op) for a in counts.chip_activity(priced)]
+    return on_chip + _digital(counts.host_work(), host, "host compute", counts.host_parameters)
 
 
 def ann_terms(counts: AnnCounts, profile: Profile) -> list[Term]:
-    """The ANN's dynamic energy per inference, term by term."""
-    return _digital(counts.ops(), profile, "host compute", counts.parameters)
+    """The ANN's dynamic energy per inference, term by term (all of it host work)."""
+    return terms(counts, profile, profile)
 
 
 def static_terms(profile: Profile, seconds: float, role: str) -> list[Term]:
@@ -193,7 +156,7 @@ class Comparison:
     def energies(self) -> tuple[float, float]:
         """The SNN's and the ANN's dynamic energy per inference, pJ."""
         return (
-            total(snn_terms(self.snn, self.chip, self.host)),
+            total(terms(self.snn, self.chip, self.host)),
             total(ann_terms(self.ann, self.digital)),
         )
 
@@ -273,8 +236,8 @@ class Comparison:
         updates, the host link, host work) plus a part proportional to its spikes, so the break-even density
         (spikes relative to today's) solves ``fixed + d * variable = E_ann``."""
         e_ann = self.energies()[1]
-        fixed = total(snn_terms(self.snn.scaled(0.0), self.chip, self.host))
-        variable = total(snn_terms(self.snn, self.chip, self.host)) - fixed
+        fixed = total(terms(self.snn.scaled(0.0), self.chip, self.host))
+        variable = total(terms(self.snn, self.chip, self.host)) - fixed
         out: dict[str, Any] = {"ann_pj": e_ann, "fixed_pj": fixed, "per_density_pj": variable}
         if fixed >= e_ann:
             out.update(density=None, reason="the clocked neuron updates, the host link and the "

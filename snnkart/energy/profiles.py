@@ -49,11 +49,13 @@ either given or named in ``[not_published]`` with the reason.
 from __future__ import annotations
 
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from snnkart.contract.energy_record import PriceRecord, ProfileRecord
 from snnkart.errors import ProfileError
 
 if sys.version_info >= (3, 11):
@@ -125,7 +127,7 @@ class Price:
     tag: str
     source: str
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> PriceRecord:
         return {"pj": self.value, "low_pj": self.low, "high_pj": self.high,
                 "per": "second" if self.unit in POWER_UNITS else "operation",
                 "unit_in_file": self.unit, "tag": self.tag, "source": self.source}  # fmt: skip
@@ -183,7 +185,7 @@ class Profile:
         """Whether weight reads cost anything here (not a compute-only profile)."""
         return any(self[op] > 0 for _, op in MEMORY_ROWS)
 
-    def describe(self) -> dict[str, Any]:
+    def describe(self) -> ProfileRecord:
         return {
             "name": self.name, "title": self.title, "kind": self.kind,
             "technology": self.technology, "notes": self.notes, "file": self.path,
@@ -277,7 +279,9 @@ def _rules(raw: Any, kind: str, source: str) -> dict[str, Rule]:
     return out
 
 
-def _prices(raw: dict[str, Any], kind: str, source: str) -> tuple[dict[str, Price], dict[str, str]]:
+def _prices(
+    raw: Mapping[str, object], kind: str, source: str
+) -> tuple[dict[str, Price], dict[str, str]]:
     table = raw.get("prices")
     if not isinstance(table, dict):
         raise ProfileError(
@@ -312,7 +316,7 @@ def _prices(raw: dict[str, Any], kind: str, source: str) -> tuple[dict[str, Pric
     return prices, dict(not_published)
 
 
-def _count(raw: dict[str, Any], key: str, default: int, source: str) -> int:
+def _count(raw: Mapping[str, object], key: str, default: int, source: str) -> int:
     v = raw.get(key, default)
     if isinstance(v, bool) or not isinstance(v, int) or v < 0:
         raise ProfileError(f"{source}: {key}: must be a whole number >= 0, got {v!r}")

@@ -25,7 +25,10 @@ from typing import Any
 
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.link import word_bits
-from snnkart.energy.counts import HostOp
+from snnkart.energy.activity import Activity
+from snnkart.energy.counts import HostOp, placement
+from snnkart.energy.graded import graded_op, with_graded_prices
+from snnkart.energy.profiles import Profile
 from snnkart.errors import ReportError
 
 PER_LAYER = ("messages", "payload_bits", "synaptic_events", "updates_clocked", "updates_active")
@@ -153,6 +156,61 @@ class SigmaDeltaCounts:
         address = math.ceil(math.log2(self.n_in)) if self.n_in > 1 else 0
         bits_in = self.payload_bits[0] + self.messages[0] * address
         return bits_in, float(self.n_out * word_bits(self.precision))
+
+    def host_work(self) -> list[HostOp]:
+        return self.host()
+
+    def prices_for(self, chip: Profile) -> Profile:
+        """``chip`` with the derived graded prices of these payload widths
+        (:mod:`snnkart.energy.graded`)."""
+        return with_graded_prices(chip, self.message_bits)
+
+    def chip_activity(self, chip: Profile) -> list[Activity]:
+        """Graded synaptic events into each Dense, each SigmaDelta's graded messages, the
+        updates the chip performs (``rules.neuron_updates``), routing and the link; ``chip``
+        must carry the graded prices (:meth:`prices_for`)."""
+        items = []
+        for i, bits in enumerate(self.message_bits[:-1]):
+            sender = "input Delta (host)" if i == 0 else f"SigmaDelta {i}"
+            what = (f"{sender} -> {self.chip_sizes[i]}: messages x fan-out "
+                    f"({bits}-bit payload x weight)")  # fmt: skip
+            items.append(Activity("synaptic ops", what, self.synaptic_events[i],
+                                  graded_op("synop", bits)))  # fmt: skip
+            if i:
+                items.append(Activity("messages", f"{sender}: graded messages ({bits}-bit)",
+                                      self.messages[i], graded_op("message", bits)))  # fmt: skip
+        return items + self._updates(chip) + self._routing(chip) + self._link(chip)
+
+    def _updates(self, chip: Profile) -> list[Activity]:
+        clocked = chip.rule("neuron_updates").value == "clocked"
+        source = self.updates_clocked if clocked else self.updates_active
+        items = []
+        for i, n in enumerate(self.chip_sizes, start=1):
+            name = f"SigmaDelta {i}" if i <= self.depth else "readout Sigma"
+            what = (f"{name} ({n} neurons): N x {self.rows} rows (clocked)" if clocked
+                    else f"{name} ({n} neurons): active neurons (active)")  # fmt: skip
+            items.append(Activity("neuron updates", what, source[i], "neuron_update"))
+        return items
+
+    def _routing(self, chip: Profile) -> list[Activity]:
+        where = placement(self.chip_sizes, chip)
+        if "hop" not in chip.prices or where is None:
+            return []
+        op = graded_op("hop", self.num_message_bits)
+        return [Activity("routing", f"SigmaDelta {i}: messages x {hops:g} tile hops",
+                         self.messages[i] * hops, op)
+                for i, hops in enumerate(where.hops_per_spike[:-1], start=1)]  # fmt: skip
+
+    def _link(self, chip: Profile) -> list[Activity]:
+        if "io_bit" not in chip.prices:
+            return []
+        bits_in, bits_out = self.link_bits()
+        return [
+            Activity("host link", "in: input messages x (payload + address bits)", bits_in,
+                     "io_bit"),
+            Activity("host link", f"out: the Sigma's {self.n_out} values, once per env step",
+                     bits_out, "io_bit"),
+        ]  # fmt: skip
 
     def host(self) -> list[HostOp]:
         """The host's work per env step: the observation's normalisation (as the ANN's), its

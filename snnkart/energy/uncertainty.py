@@ -17,10 +17,17 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
+from snnkart.contract.energy_record import (
+    Joint,
+    JointPrice,
+    OneAtATime,
+    SampledPrice,
+    SamplingMethod,
+    Spread,
+)
 from snnkart.energy.pricing import Term
 from snnkart.energy.profiles import Price, Profile
 
@@ -69,7 +76,7 @@ class Draw:
             return self.low * (self.high / self.low) ** u
         return self.low + (self.high - self.low) * u
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> SampledPrice:
         return {"profile": self.profile, "op": self.op, "pj": self.value, "low_pj": self.low,
                 "high_pj": self.high, "distribution": self.distribution,
                 "quantity": self.quantity}  # fmt: skip
@@ -130,7 +137,7 @@ def sample_prices(draws: Sequence[Draw], samples: int, seed: int) -> np.ndarray:
     return np.stack([d.at(u[row[d.quantity]]) for d in draws], axis=1)
 
 
-def _spread(x: np.ndarray) -> dict[str, float | None]:
+def _spread(x: np.ndarray) -> Spread:
     with np.errstate(invalid="ignore"):  # a ratio over an ANN priced at 0 is infinite
         lo, mid, hi = np.percentile(x, [5.0, 50.0, 95.0])
     return {"median": _finite(mid), "p05": _finite(lo), "p95": _finite(hi)}
@@ -141,7 +148,7 @@ def _finite(x: float) -> float | None:
 
 
 def joint(snn: Sequence[Term], ann: Sequence[Term], profiles: Iterable[Profile],
-          samples: int = SAMPLES, seed: int = SEED) -> dict[str, Any]:  # fmt: skip
+          samples: int = SAMPLES, seed: int = SEED) -> Joint:  # fmt: skip
     """The SNN's and the ANN's energies (terms ``snn`` and ``ann``, priced on ``profiles``)
     with every price drawn from its range together: the ratio's median, 90 % interval
     (5th-95th percentile) and the probability that the SNN costs less."""
@@ -161,14 +168,14 @@ def joint(snn: Sequence[Term], ann: Sequence[Term], profiles: Iterable[Profile],
     return {
         "samples": samples,
         "seed": seed,
-        "ratio": _spread(defined) if defined.size else dict.fromkeys(("median", "p05", "p95")),
+        "ratio": _spread(defined) if defined.size else Spread(median=None, p05=None, p95=None),
         "p_snn_cheaper": float(np.mean(e_snn < e_ann)),
         "snn_pj": _spread(e_snn),
         "ann_pj": _spread(e_ann),
         "shared": _shared(draws, c_snn, c_ann),
         "one_at_a_time": one_at_a_time(draws, c_snn, c_ann),
         "prices": [
-            {**d.as_dict(), "sides": _sides([i], c_snn, c_ann)}
+            JointPrice(**d.as_dict(), sides=_sides([i], c_snn, c_ann))
             for i, d in enumerate(draws)
             if d.distribution != "fixed"
         ],
@@ -183,12 +190,12 @@ def _shared(draws: Sequence[Draw], c_snn: np.ndarray, c_ann: np.ndarray) -> list
 
 
 def one_at_a_time(draws: Sequence[Draw], c_snn: np.ndarray,
-                  c_ann: np.ndarray) -> list[dict[str, Any]]:  # fmt: skip
+                  c_ann: np.ndarray) -> list[OneAtATime]:  # fmt: skip
     """Each uncertain quantity alone at the low and the high end of its range (a shared one on
     both sides at once), every other price at its value: the ratio at either end, the widest
     swing first (the single input that moves the verdict most)."""
     central = np.array([d.value for d in draws])
-    rows = []
+    rows: list[OneAtATime] = []
     for q in sorted({d.quantity for d in draws if d.distribution != "fixed"}):
         moved = [i for i, d in enumerate(draws) if d.quantity == q]
         ends = np.tile(central, (2, 1))
@@ -207,14 +214,14 @@ def _sides(moved: list[int], c_snn: np.ndarray, c_ann: np.ndarray) -> list[str]:
     return [side for side, c in (("SNN", c_snn), ("ANN", c_ann)) if c[moved].any()]
 
 
-def _swing(row: dict[str, Any]) -> float:
+def _swing(row: OneAtATime) -> float:
     lo, hi = row["ratio_low"], row["ratio_high"]
     if lo is None or hi is None or min(lo, hi) <= 0:
         return float("inf") if lo != hi else 0.0
     return abs(float(np.log(hi / lo)))
 
 
-def method() -> dict[str, Any]:
+def method() -> SamplingMethod:
     """What :func:`joint` does, for the report to state."""
     return {
         "samples": SAMPLES,

@@ -70,7 +70,7 @@ class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
         self,
         track: str | Path | Track = "small_S",
         action_mode: str = "discrete",
-        config: ConfigT | dict[str, Any] | None = None,
+        config: ConfigT | dict[str, object] | None = None,
         render_mode: str | None = None,
     ) -> None:
         self._check_modes(action_mode, render_mode)
@@ -138,7 +138,7 @@ class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
             )
 
     @classmethod
-    def _resolve_config(cls, config: EnvConfig | dict[str, Any] | None) -> EnvConfig:
+    def _resolve_config(cls, config: EnvConfig | dict[str, object] | None) -> EnvConfig:
         if config is None:
             return cls.config_class()
         if isinstance(config, dict):
@@ -206,7 +206,7 @@ class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
 
     # -- gymnasium API --------------------------------------------------------------------------
 
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, object]]:
         if self._needs_reset:
             raise RuntimeError("call reset() before step(): the episode has ended or not begun")
         x0, y0, speed0 = self._x, self._y, self.speed_m_s
@@ -261,8 +261,8 @@ class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
         return 0.0 if math.isnan(progress) else progress
 
     def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[np.ndarray, dict[str, Any]]:
+        self, *, seed: int | None = None, options: dict[str, object] | None = None
+    ) -> tuple[np.ndarray, dict[str, object]]:
         super().reset(seed=seed)
         if self.random_tracks:
             self._draw_random_track()
@@ -361,7 +361,7 @@ class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
         obs[k + 2] = min(dist / self._dist_scale, 1.0)
         return obs if self._select is None else self._select(obs)
 
-    def _info(self, crashed: bool, stood_still: bool) -> dict[str, Any]:
+    def _info(self, crashed: bool, stood_still: bool) -> dict[str, object]:
         elapsed = self._steps * DT
         return {
             "checkpoint": self._next_cp,

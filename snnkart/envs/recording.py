@@ -32,14 +32,21 @@ mode or observation layout is refused with one line naming the difference.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import gymnasium as gym
 import numpy as np
 
-from snnkart.envs.spec import env_spec, revision_mismatch, spec_differences, spec_hash
+from snnkart.envs.spec import (
+    env_spec,
+    layout_of,
+    revision_mismatch,
+    spec_differences,
+    spec_hash,
+)
 from snnkart.errors import SnnkartError
 from snnkart.io import atomic_path
 
@@ -63,6 +70,30 @@ class RecordingError(SnnkartError, ValueError):
     """A recording file that is missing, malformed, or made in another env."""
 
 
+RecordedEpisode = TypedDict(
+    "RecordedEpisode", {"seed": int, "length": int, "end": str | None, "return": float}
+)
+"""One episode of a recording: its reset seed, its steps, how it ended (finished, crashed,
+stood_still, terminated, time_limit, restarted or stopped) and its return."""
+
+
+class RecordingMeta(TypedDict):
+    """The ``meta`` of a recording (module docstring)."""
+
+    schema: str
+    driver: str
+    env_spec: dict[str, object]
+    env_spec_hash: str
+    gamma: float
+    episodes: list[RecordedEpisode]
+
+
+class _OpenEpisode(TypedDict):
+    seed: int
+    start: int
+    end: str | None  # how it ended; None while it runs
+
+
 def returns_to_go(
     rewards: np.ndarray, episode_starts: np.ndarray, gamma: float = RECORDING_GAMMA
 ) -> np.ndarray:
@@ -82,7 +113,7 @@ def returns_to_go(
 class Recording:
     """One recording in memory; :meth:`save` and :meth:`load` are its file round trip."""
 
-    meta: dict[str, Any]
+    meta: RecordingMeta
     obs: np.ndarray
     actions: np.ndarray
     rewards: np.ndarray
@@ -105,7 +136,7 @@ class Recording:
             raise RecordingError("recording: one seed per episode expected")
 
     @property
-    def spec(self) -> dict[str, Any]:
+    def spec(self) -> dict[str, object]:
         """The :func:`~snnkart.envs.spec.env_spec` of the env it was recorded in."""
         return dict(self.meta["env_spec"])
 
@@ -141,7 +172,7 @@ class Recording:
         return cls(meta=meta, **arrays)
 
     def check(
-        self, spec: dict[str, Any], source: str = "recording", *, any_track: bool = False
+        self, spec: Mapping[str, object], source: str = "recording", *, any_track: bool = False
     ) -> None:
         """Refuse (one line naming the difference) unless this recording was made in an env
         with ``spec``; ``any_track``: another track is fine (behaviour cloning), another env,
@@ -155,7 +186,7 @@ class Recording:
 
 
 def recording_differences(
-    saved: dict[str, Any], spec: dict[str, Any], *, any_track: bool = False
+    saved: Mapping[str, object], spec: Mapping[str, object], *, any_track: bool = False
 ) -> list[str]:
     """How the env a recording was made in differs from ``spec``, one short phrase each
     (:func:`~snnkart.envs.spec.spec_differences`, with layouts by field name and env
@@ -167,14 +198,12 @@ def recording_differences(
         if saved.get(key) != spec[key]:
             diffs.append(f"{key.replace('_', ' ')} {saved.get(key)} vs {spec[key]}")
     names = [
-        ", ".join(
-            f"{f[0]}[{f[1]}]" if f[1] != 1 else str(f[0]) for f in s.get("observation_layout") or []
-        )
+        ", ".join(f"{f[0]}[{f[1]}]" if f[1] != 1 else str(f[0]) for f in layout_of(s))
         for s in (saved, spec)
     ]
     if saved.get("observation_layout") != spec["observation_layout"] and not diffs:
         diffs.append(f"observation layout ({names[0]}) vs ({names[1]})")
-    changed = _changed_keys(saved.get("env_config") or {}, spec["env_config"])
+    changed = _changed_keys(_env_config(saved), _env_config(spec))
     if changed and not diffs:  # another env has another config anyway
         diffs.append(
             f"env config differs in {', '.join(changed[:4])}{' ...' if len(changed) > 4 else ''}"
@@ -184,7 +213,12 @@ def recording_differences(
     return diffs
 
 
-def _changed_keys(a: dict[str, Any], b: dict[str, Any], prefix: str = "") -> list[str]:
+def _env_config(spec: Mapping[str, object]) -> Mapping[str, object]:
+    config = spec.get("env_config")
+    return config if isinstance(config, dict) else {}
+
+
+def _changed_keys(a: Mapping[str, object], b: Mapping[str, object], prefix: str = "") -> list[str]:
     """The dotted keys whose values differ between two nested dicts."""
     out = []
     for key in sorted(set(a) | set(b)):
@@ -209,10 +243,10 @@ class RecordingWrapper(gym.Wrapper):  # type: ignore[type-arg]
         self.spec_ = env_spec(env.unwrapped)  # type: ignore[arg-type]
         self._seeds = np.random.default_rng(seed)
         self._rows: list[tuple[Any, ...]] = []
-        self._episodes: list[dict[str, Any]] = []
+        self._episodes: list[_OpenEpisode] = []
         self._obs: np.ndarray | None = None
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> Any:
+    def reset(self, *, seed: int | None = None, options: dict[str, object] | None = None) -> Any:
         self._end("restarted")
         seed = int(self._seeds.integers(2**31)) if seed is None else int(seed)
         obs, info = self.env.reset(seed=seed, options=options)
@@ -259,7 +293,7 @@ class RecordingWrapper(gym.Wrapper):  # type: ignore[type-arg]
         )
         starts = np.array([e["start"] for e in self._episodes], dtype=np.int64)
         ends = [*starts[1:].tolist(), len(rewards)]
-        episodes = [
+        episodes: list[RecordedEpisode] = [
             {
                 "seed": e["seed"],
                 "length": end - e["start"],
@@ -268,7 +302,7 @@ class RecordingWrapper(gym.Wrapper):  # type: ignore[type-arg]
             }
             for e, end in zip(self._episodes, ends, strict=True)
         ]
-        meta = {
+        meta: RecordingMeta = {
             "schema": RECORDING_SCHEMA,
             "driver": self.driver,
             "env_spec": self.spec_,
@@ -289,7 +323,7 @@ class RecordingWrapper(gym.Wrapper):  # type: ignore[type-arg]
         )
 
 
-def _outcome(info: dict[str, Any], terminated: bool) -> str:
+def _outcome(info: Mapping[str, object], terminated: bool) -> str:
     if info.get("lap_finished"):
         return "finished"
     if info.get("crashed"):

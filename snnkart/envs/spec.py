@@ -11,8 +11,9 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict
 
 import gymnasium as gym
 import numpy as np
@@ -34,7 +35,7 @@ layout and bounds alone do not show that):
 """
 
 
-def revision_mismatch(saved: Any) -> str | None:
+def revision_mismatch(saved: object) -> str | None:
     """What to tell a user whose policy was made on env revision ``saved`` (None when it is
     the current one); the caller adds what to do."""
     if saved == ENV_REVISION:
@@ -60,7 +61,7 @@ def make_env(
     env: str,
     track: str | Path | Track,
     action_mode: str = "discrete",
-    config: dict[str, Any] | None = None,
+    config: dict[str, object] | None = None,
     render_mode: str | None = None,
 ) -> gym.Env:
     """The env ``env`` (any accepted spelling) on ``track``: :func:`snnkart.envs.make` with
@@ -74,11 +75,27 @@ def make_env(
     )
 
 
-def env_spec(env: KartEnv) -> dict[str, Any]:
-    """Everything about an env that a trained policy depends on."""
+class EnvSpec(TypedDict):
+    """What a trained policy depends on in an env (:func:`env_spec`), as checkpoints,
+    recordings and manifests store it."""
+
+    revision: int
+    env: str
+    track: str
+    track_sha256: str
+    action_mode: str
+    action_space: str
+    observation_layout: list[list[str | int | float]]  # per component: name, size, low, high
+    obs_dim: int
+    env_config: dict[str, object]  # the env config as JSON, terms added while off left out
+
+
+def env_spec(env: KartEnv) -> dict[str, object]:
+    """Everything about an env that a trained policy depends on (an :class:`EnvSpec`), as
+    the JSON data the records store, hash and compare key by key."""
     track = env.track_given  # random tracks: their stand-in, not the current one
     track_text = track.to_toml()
-    return {
+    spec: EnvSpec = {
         "revision": ENV_REVISION,
         "env": env.env_name,
         "track": track.name,
@@ -89,6 +106,7 @@ def env_spec(env: KartEnv) -> dict[str, Any]:
         "obs_dim": int(env.observation_space.low.shape[0]),
         "env_config": _env_config(env),
     }
+    return dict(spec)
 
 
 _ADDED_OFF = {
@@ -99,7 +117,7 @@ governs) pairs. While a switch is off (0), its fields change nothing and are lef
 spec."""
 
 
-def _env_config(env: KartEnv) -> dict[str, Any]:
+def _env_config(env: KartEnv) -> dict[str, object]:
     data = env.config.model_dump(mode="json")
     for key in _ADDED_UNSET:
         if data.get(key) is None:
@@ -113,7 +131,7 @@ def _env_config(env: KartEnv) -> dict[str, Any]:
     return data
 
 
-def trained_env_config(saved: dict[str, Any]) -> dict[str, Any] | None:
+def trained_env_config(saved: Mapping[str, object]) -> dict[str, object] | None:
     """The env config a policy was trained with, from its saved spec (None if it has none):
     the full resolved config, with the terms left out while off written back as off, so a
     later change of a default does not change the env an existing run evaluates or resumes
@@ -130,11 +148,17 @@ def trained_env_config(saved: dict[str, Any]) -> dict[str, Any] | None:
     return data
 
 
-def spec_hash(spec: dict[str, Any]) -> str:
+def layout_of(spec: Mapping[str, object]) -> list[list[object]]:
+    """A spec's observation layout, ``[name, size, low, high]`` per component (none: ``[]``)."""
+    layout = spec.get("observation_layout")
+    return layout if isinstance(layout, list) else []
+
+
+def spec_hash(spec: Mapping[str, object]) -> str:
     return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def spec_differences(saved: dict[str, Any], spec: dict[str, Any]) -> list[str]:
+def spec_differences(saved: Mapping[str, object], spec: Mapping[str, object]) -> list[str]:
     """How the saved spec differs from ``spec`` (an env's :func:`env_spec`), one phrase per
     difference; a revision mismatch comes alone, first (what the observations mean has
     changed)."""
@@ -154,7 +178,7 @@ def spec_differences(saved: dict[str, Any], spec: dict[str, Any]) -> list[str]:
     return diffs
 
 
-def fit_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
+def fit_problem(saved: Mapping[str, object], env: gym.Env) -> str | None:
     """Why a policy made for the saved spec cannot act in ``env`` at all (observation size,
     action space), or None. Weaker than :func:`spec_differences`: a deployed policy may be
     run on another track or env when it fits, a resumed run may not."""
@@ -176,19 +200,19 @@ def fit_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
     return None
 
 
-def layout_problem(saved: dict[str, Any], env: gym.Env) -> str | None:
+def layout_problem(saved: Mapping[str, object], env: gym.Env) -> str | None:
     """How the observation components of the saved spec differ from ``env``'s, or None.
     Checked when either names its components (``env_config.observation``); a spec without
     them means the env's own layout, so two default layouts (of different envs) still fit."""
-    saved_config = saved.get("env_config") or {}
+    saved_config = saved.get("env_config")
+    wanted = saved_config.get("observation") if isinstance(saved_config, dict) else None
     mine = getattr(getattr(env.unwrapped, "config", None), "observation", None)
-    if saved_config.get("observation") is None and mine is None:
+    if wanted is None and mine is None:
         return None
-    theirs = [f[0] for f in saved.get("observation_layout") or []]
+    theirs = [str(f[0]) for f in layout_of(saved)]
     ours = [f.name for f in getattr(env.unwrapped, "observation_layout", ())]
     if theirs == ours:
         return None
-    wanted = saved_config.get("observation")
     fix = f"env_config.observation = {list(wanted)}" if wanted else "no env_config.observation"
     return (
         f"the policy observes [{', '.join(theirs)}] but env "

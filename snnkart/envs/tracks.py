@@ -32,6 +32,7 @@ import itertools
 import json
 import math
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -196,10 +197,13 @@ def embed_track(track: Track, given: str | Path) -> dict[str, str]:
     }
 
 
-def embedded_track(record: dict[str, Any], where: str) -> Track:
+def embedded_track(record: Mapping[str, object], where: str) -> Track:
     """Rebuild a track from :func:`embed_track`'s record (``where`` names the file it is in)."""
     try:
-        track = parse_track(record["toml"], source=f"track {record['name']!r} embedded in {where}")
+        text = record["toml"]
+        if not isinstance(text, str):
+            raise TypeError(f"its toml is a {type(text).__name__}, not text")
+        track = parse_track(text, source=f"track {record['name']!r} embedded in {where}")
     except (KeyError, TypeError) as exc:
         raise TrackError(f"{where}: malformed embedded track ({exc})") from exc
     if track_sha256(track) != record.get("sha256"):
@@ -333,7 +337,7 @@ class _Where:
         return f"{self.source}: {key}"
 
 
-def _table(value: Any, where: str) -> dict[str, Any]:
+def _table(value: object, where: str) -> dict[str, object]:
     if not isinstance(value, dict):
         raise TrackError(f"{where}: expected a table, got {value!r}")
     return value

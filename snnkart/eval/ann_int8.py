@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.contract.report_record import AnnRunTask, Int8Task, Task
 from snnkart.eval.episodes import EvalSummary, run_episodes
 from snnkart.rl.int8 import Int8Mlp, actor_activation, actor_params, quantise_mlp
 from snnkart.rl.rollout import normalize_obs
@@ -104,7 +105,7 @@ def record_observations(run: LoadedRun, make_env: Callable[[], Any], seeds: rang
 
 
 def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, episodes: int,
-              calibration_episodes: int = CALIBRATION_EPISODES) -> dict[str, Any]:  # fmt: skip
+              calibration_episodes: int = CALIBRATION_EPISODES) -> Int8Task:  # fmt: skip
     """Quantise the run's actor and drive the episodes ``first_seed, ...``: the int8 ANN's
     task record (the report's ``ann.run.task.int8``)."""
     t0 = time.perf_counter()
@@ -147,9 +148,9 @@ def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, epis
     }  # fmt: skip
 
 
-def task_on(task: dict[str, Any] | None, profile: str) -> dict[str, Any] | None:
+def task_on(task: AnnRunTask | None, profile: str) -> Task | None:
     """The ANN's task on a digital profile: the int8 ANN's measured task on an int8 datapath
     (when it was measured), else the float ANN's."""
     if task is not None and INT8_PROFILE_MARK in profile and task.get("int8"):
-        return task["int8"]  # type: ignore[no-any-return]
+        return task["int8"]
     return task

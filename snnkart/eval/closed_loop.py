@@ -26,7 +26,7 @@ from typing import Any, NamedTuple
 
 from snnkart import faults
 from snnkart.backends.base import SpikeCounts
-from snnkart.backends.loading import LoadedPolicy, open_policy
+from snnkart.backends.loading import open_policy
 from snnkart.backends.registry import BACKENDS
 from snnkart.backends.sdnn_counts import SigmaDeltaTotals
 from snnkart.contract.deploy_inputs import INPUTS_FILE, DeployInputs
@@ -40,7 +40,6 @@ from snnkart.contract.deploy_record import (
     EnvRecord,
     Machine,
     ManifestSummary,
-    NetworkShape,
     OverheadCounts,
     ParityRecord,
     QuantLayer,
@@ -90,8 +89,8 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         stack.push(primary.__exit__)  # stops Lava on success, error and Ctrl-C
         # inputs.npz: what entered the chip and what each layer sent, window by window (LIF
         # chains; a sigma-delta deploy writes deploy.json alone)
-        lif = isinstance(policy, LoadedPolicy)
-        recorder = record_inputs(primary) if out_dir is not None and lif else None  # type: ignore[arg-type]
+        keep = out_dir is not None and primary.records_inputs
+        recorder = record_inputs(primary) if keep else None  # type: ignore[arg-type]
         run = _Run(CheckedPredictor(primary, exact, float32), time.perf_counter() - t0)
         run.play(gym_env, request.episodes, seed, on_step, on_episode)
     record = DeployRecord(
@@ -100,7 +99,7 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         precision=precision if backend == "lava-sim" else primary.arithmetic,
         nir_file=str(nir_path),
         manifest=_manifest_summary(manifest),
-        network=_network(policy),
+        network=policy.shape(),
         env=EnvRecord(
             env=gym_env.unwrapped.env_name,
             **choice.record(),
@@ -178,22 +177,6 @@ class _Run:
             ),
             quantization=quantization,
         )
-
-
-def _network(policy: Any) -> NetworkShape:
-    """The chain's shape, for the energy report's counts (a sigma-delta policy: the input,
-    the SigmaDelta layers and the readout)."""
-    if not isinstance(policy, LoadedPolicy):
-        n_in, *hidden, n_out = policy.sizes
-        return NetworkShape(n_in=n_in, sizes=tuple(hidden), n_out=n_out)
-    chain = policy.chain
-    return NetworkShape(
-        n_in=chain.n_in,
-        sizes=tuple(chain.sizes),
-        n_out=chain.n_out,
-        readout=chain.readout_weight is not None,
-        input_scale=chain.input_scale is not None,
-    )
 
 
 def _manifest_summary(manifest: Manifest) -> ManifestSummary:

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from snnkart.envs.base import KartEnv
 from snnkart.envs.recording import Recording, RecordingWrapper
@@ -24,7 +23,7 @@ def record_driver(
     episodes: int = 10,
     seed: int = 0,
     action_mode: str = "discrete",
-    env_config: dict[str, Any] | None = None,
+    env_config: dict[str, object] | None = None,
 ) -> Recording:
     """``episodes`` episodes of ``driver`` in ``env`` on ``track`` with seeds ``seed, seed+1,
     ...``, recorded step by step."""

@@ -12,14 +12,13 @@ import numpy as np
 
 from snnkart import faults
 from snnkart.backends.base import Arithmetic
-from snnkart.backends.loading import LoadedPolicy
+from snnkart.backends.loading import Opened
 from snnkart.backends.registry import make_backend
-from snnkart.backends.sdnn_policy import SigmaDeltaPolicy
 from snnkart.contract.deploy_record import DeployRecord
 from snnkart.errors import ParityError
 
 if TYPE_CHECKING:
-    from snnkart.backends.registry import AnyBackend
+    from snnkart.backends.backend import RunningPolicy as AnyBackend
 
 
 @dataclass
@@ -138,7 +137,7 @@ def _flips(a: Any, b: Any) -> int:
 
 
 def open_backends(
-    policy: LoadedPolicy | SigmaDeltaPolicy, backend: str, arithmetic: Arithmetic, seed: int
+    policy: Opened, backend: str, arithmetic: Arithmetic, seed: int
 ) -> tuple[AnyBackend, AnyBackend | None, AnyBackend | None]:
     """The backend, its same-arithmetic reference (None for the reference itself) and the
     float32 reference (None when the backend is the float32 reference), all on ``policy``."""

@@ -4,11 +4,22 @@ named with ``--track``) and the env its manifest describes, checked to fit the p
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypedDict
 
 from snnkart.contract.manifest import Manifest
 from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.errors import DeployError
+
+
+class TrackRecord(TypedDict):
+    """The track a policy ran on, as deploy and eval records state it."""
+
+    track: str
+    track_given: str
+    track_source: str
+    track_sha256: str
+    trained_track: dict[str, str]
+    track_override: bool
 
 
 @dataclass(frozen=True)
@@ -29,7 +40,7 @@ class TrackChoice:
         label = track_label(self.track.name, self.given)
         return label[:-1] + ", embedded)" if self.source == "embedded" and "(" in label else label
 
-    def record(self) -> dict[str, Any]:
+    def record(self) -> TrackRecord:
         return {
             "track": self.track.name,
             "track_given": self.given,
@@ -49,7 +60,10 @@ def resolve_track(manifest: Manifest, track: str | None) -> TrackChoice:
     if manifest.track:
         trained = {k: manifest.track[k] for k in ("name", "given", "sha256")}
     else:
-        trained = {"name": spec.get("track", "small_S"), "sha256": spec.get("track_sha256", "")}
+        trained = {
+            "name": str(spec.get("track", "small_S")),
+            "sha256": str(spec.get("track_sha256", "")),
+        }
     if track is not None:
         try:
             return TrackChoice(load_track(track), str(track), "--track", trained)
@@ -95,7 +109,7 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
         raise DeployError(f"{where}: {exc}") from exc
     if track is None or isinstance(track, str):
         track = resolve_track(manifest, track).track
-    kwargs: dict[str, Any] = {
+    kwargs: dict[str, object] = {
         "track": track,
         "action_mode": spec.get("action_mode", manifest.action_mode),
     }

@@ -15,7 +15,13 @@ from snnkart.report import sd_document as sd
 from snnkart.report.ledger import ledger, price_rows
 from snnkart.report.sanafe_page import TITLE as SANAFE_TITLE
 from snnkart.report.sanafe_page import sanafe_lines, sanafe_rows
-from snnkart.report.texts import INCLUDES, LEAVES_OUT, REFERENCES
+from snnkart.report.texts import (
+    INCLUDES,
+    LEAVES_OUT,
+    REFERENCES,
+    deployment_opening,
+    not_driving,
+)
 
 Block = dict[str, Any]
 """One piece of a section: ``{"kind": "p" | "warn" | "ul" | "table" | "details" | "figure", ...}``,
@@ -225,10 +231,8 @@ def _first_section(report: dict[str, Any]) -> list[Block]:
     and its chart."""
     blocks: list[Block] = []
     if not report["drives"]:
-        blocks.append({"kind": "warn", "text": (
-            f"WARNING: the spiking policy does not drive: success "
-            f"{first.pct(report['snn']['task']['success_rate'])} (< 80 %). The energy numbers "
-            "below describe a policy that fails its task; they are not a result.")})  # fmt: skip
+        success = first.pct(report["snn"]["task"]["success_rate"])
+        blocks.append(not_driving("the spiking policy", success))
     blocks.append({"kind": "p", "id": "verdict", "text": first.sentence(report)})
     blocks.append({"kind": "figure", "name": "verdict"})
     return blocks
@@ -237,8 +241,7 @@ def _first_section(report: dict[str, Any]) -> list[Block]:
 def _deployment(report: dict[str, Any]) -> str:
     d, net = report["deploy"], report["network"]
     return (
-        f"Deployment: {d['file']} ({d['backend']}, {d['precision']}), {d['env']}/{d['track']}, "
-        f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). Network "
+        f"{deployment_opening(d)} Network "
         f"{net['n_in']} -> {net['sizes']} -> {net['n_out']}, T = {net['num_steps']}. Host work "
         f"priced on {report['host_profile']}. {_parity(d)}{_int8(report)}"
         + (f" Stateful: {report['state']['note']}." if report.get("state") else "")

@@ -3,8 +3,9 @@ source) and its per-term ledger (count x price = energy, for each pair of the ve
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Mapping
 
+from snnkart.contract.report_record import lif_report
 from snnkart.report.first_screen import pairs
 
 
@@ -13,10 +14,10 @@ def _value(op: str, pj: float) -> str:
     return f"{pj / 1e12:.3g} W" if op == "static_power" else f"{pj:.3g} pJ"
 
 
-def price_rows(report: dict[str, Any]) -> list[dict[str, str]]:
+def price_rows(report: Mapping[str, object]) -> list[dict[str, str]]:
     """Every price of every profile the report used, then what is not published."""
     rows = []
-    for name, p in report["profiles"].items():
+    for name, p in lif_report(report)["profiles"].items():
         for op, price in p["prices"].items():
             rows.append({
                 "profile": name, "op": op, "value": _value(op, price["pj"]),
@@ -29,11 +30,11 @@ def price_rows(report: dict[str, Any]) -> list[dict[str, str]]:
     return rows
 
 
-def ledger(report: dict[str, Any]) -> list[tuple[str, list[dict[str, str]]]]:
+def ledger(report: Mapping[str, object]) -> list[tuple[str, list[dict[str, str]]]]:
     """For each pair of the verdict, every term of both sides: count x price (with its evidence
     tag) = energy."""
     out = []
-    tag = {(name, op): price["tag"] for name, p in report["profiles"].items()
+    tag = {(name, op): price["tag"] for name, p in lif_report(report)["profiles"].items()
            for op, price in p["prices"].items()}  # fmt: skip
     for c in pairs(report):
         rows = []

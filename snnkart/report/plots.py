@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import io
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
+
+from snnkart.contract.report_record import SensitivityRow, SweepPoint
 
 SD_PART_COLOURS = {"messages": "#bcbd22"}
 """A sigma-delta inference's part the LIF breakdown has not (its graded messages)."""
@@ -94,13 +96,13 @@ def breakdown(energies: dict[str, dict[str, float]],
     return _png(fig, tight=False)
 
 
-def _moves(row: dict[str, Any]) -> bool:
+def _moves(row: SensitivityRow) -> bool:
     """Whether moving the price changes the ratio at all (a price whose count is 0 does not)."""
     values = {row["ratio"], row["ratio_x0.1"], row["ratio_x10"]}
     return max(values) > min(values) * (1 + 1e-9)
 
 
-def sensitivity(rows: Sequence[dict[str, Any]], curve: Sequence[tuple[float, float]],
+def sensitivity(rows: Sequence[SensitivityRow], curve: Sequence[tuple[float, float]],
                 break_even: float | None, title: str) -> bytes:  # fmt: skip
     """Left: the SNN/ANN ratio as each price moves 0.1x-10x (light) and across its range (dark),
     the prices that do not move it named below; right: the ratio against the spike density,
@@ -163,7 +165,7 @@ MARKERS = {
 """One marker per policy kind of a sweep's runs (:meth:`snnkart.report.study_record.StudySettings.run_label`)."""
 
 
-def tradeoff(points: Sequence[dict[str, Any]], ann_pj: dict[str, float], profile: str,
+def tradeoff(points: Sequence[SweepPoint], ann_pj: dict[str, float], profile: str,
              title: str) -> bytes:  # fmt: skip
     """Left: success rate against energy per inference (one dot per run of the sweep, its
     marker its policy kind, the ANN's energy as vertical lines); right: energy per inference
@@ -245,7 +247,18 @@ def _telling_neurons(spikes: np.ndarray, k: int = 4) -> list[int]:
     return (partial + busiest)[:k]
 
 
-def verdict(rows: Sequence[dict[str, Any]], legend: tuple[str, str]) -> bytes:
+class ChartRow(TypedDict):
+    """One pair of the first screen's chart (:func:`verdict`): energies per inference in nJ as
+    (point estimate, 5th, 95th percentile), the ANN's success on the target, P(SNN cheaper)."""
+
+    label: str
+    ann_success: str
+    snn_nj: tuple[float, float, float]
+    ann_nj: tuple[float, float, float]
+    p: float
+
+
+def verdict(rows: Sequence[ChartRow], legend: tuple[str, str]) -> bytes:
     """The first screen's chart: per pair, the SNN's and the ANN's energy per inference (point
     estimate, dot; 90 % interval of the joint sample, line), log scale, P(SNN cheaper) and the
     ANN's success at the right. Each row's ``snn_nj`` / ``ann_nj`` is (point, p05, p95) in nJ;
@@ -253,9 +266,9 @@ def verdict(rows: Sequence[dict[str, Any]], legend: tuple[str, str]) -> bytes:
     fig, axes = _figure(10.5, 0.36 * len(rows) + 1.1)
     ax = axes[0][0]
     for k, row in enumerate(rows):
-        for dy, key, colour, name in ((-0.13, "snn", "#d62728", legend[0]),
-                                      (0.13, "ann", "#555555", legend[1])):  # fmt: skip
-            point, low, high = row[f"{key}_nj"]
+        for dy, nj, colour, name in ((-0.13, row["snn_nj"], "#d62728", legend[0]),
+                                     (0.13, row["ann_nj"], "#555555", legend[1])):  # fmt: skip
+            point, low, high = nj
             ax.plot([low, high], [k + dy] * 2, color=colour, linewidth=2.5, alpha=0.55)
             ax.plot([point], [k + dy], "o", color=colour, markersize=4.5,
                     label=name if k == 0 else None)  # fmt: skip

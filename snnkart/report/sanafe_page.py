@@ -4,7 +4,10 @@ and the HTML alike."""
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Mapping
+
+from snnkart.contract.report_record import lif_report
+from snnkart.contract.sanafe_record import SanafeSection
 
 TITLE = "Second chip model: SANA-FE (Loihi)"
 
@@ -13,9 +16,13 @@ def _nj(pj: float | None) -> str:
     return "-" if pj is None else f"{pj / 1000:.3g}"
 
 
-def sanafe_lines(report: dict[str, Any]) -> list[str]:
+def _section(report: Mapping[str, object]) -> SanafeSection:
+    return lif_report(report).get("sanafe") or {"available": False}
+
+
+def sanafe_lines(report: Mapping[str, object]) -> list[str]:
     """What SANA-FE found, or why it did not run and how to add it."""
-    s = report.get("sanafe") or {}
+    s = _section(report)
     if not s.get("available"):
         return [f"SANA-FE did not run: {s.get('reason', 'no sanafe entry in report.json')}."]
     e, lat, check = s["per_inference"]["energy_pj"], s["latency"], s["lif_check"]
@@ -49,9 +56,9 @@ def sanafe_lines(report: dict[str, Any]) -> list[str]:
     ]
 
 
-def sanafe_rows(report: dict[str, Any]) -> list[dict[str, str]]:
+def sanafe_rows(report: Mapping[str, object]) -> list[dict[str, str]]:
     """SANA-FE against snnkart's Loihi 1 estimate, term by term (none when it did not run)."""
-    s = report.get("sanafe") or {}
+    s = _section(report)
     if not s.get("available"):
         return []
     return [

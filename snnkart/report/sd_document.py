@@ -9,6 +9,7 @@ from typing import Any
 
 from snnkart.report import first_screen as first
 from snnkart.report import plots
+from snnkart.report.texts import deployment_opening, not_driving
 
 Block = dict[str, Any]
 Section = tuple[str, list[Block]]
@@ -93,8 +94,7 @@ def goal_lines(report: dict[str, Any]) -> list[str]:
 def _deployment(report: dict[str, Any]) -> str:
     d, net = report["deploy"], report["network"]
     return (
-        f"Deployment: {d['file']} ({d['backend']}, {d['precision']}), {d['env']}/{d['track']}, "
-        f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). Sigma-delta network "
+        f"{deployment_opening(d)} Sigma-delta network "
         f"{net['n_in']} -> {net['sizes']} -> {net['n_out']}, {net['rows']} Lava steps per env "
         f"step (the held schedule), {net['num_message_bits']}-bit messages. Host work priced on "
         f"{report['host_profile']}. Baseline: the {report['ann']['same_shape']['label']}."
@@ -105,10 +105,8 @@ def sections(report: dict[str, Any], figure_names: list[str]) -> list[Section]:
     """The sigma-delta page, in order; the first section (untitled) is the first screen."""
     first_screen: list[Block] = []
     if not report["drives"]:
-        first_screen.append({"kind": "warn", "text": (
-            f"WARNING: the sigma-delta policy does not drive: success "
-            f"{first.pct(report['task']['success_rate'])} (< 80 %). The energy numbers below "
-            "describe a policy that fails its task; they are not a result.")})  # fmt: skip
+        success = first.pct(report["task"]["success_rate"])
+        first_screen.append(not_driving("the sigma-delta policy", success))
     first_screen.append({"kind": "p", "id": "verdict", "text": first.sd_sentence(report)})
     return [
         ("", first_screen),

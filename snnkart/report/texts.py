@@ -51,3 +51,19 @@ REFERENCES = (
     "Paredes-Vallés et al., Science Robotics 2024 (Loihi idle power); lava-dl's PilotNet "
     "benchmarks on Loihi 2 (static power).",
 )
+
+
+def not_driving(policy: str, success: str) -> dict[str, str]:
+    """The first screen's warning when ``policy`` (a phrase: "the spiking policy") fails its
+    task: success ``success`` (a percentage) below 80 %."""
+    return {"kind": "warn", "text": (
+        f"WARNING: {policy} does not drive: success {success} (< 80 %). The energy numbers "
+        "below describe a policy that fails its task; they are not a result.")}  # fmt: skip
+
+
+def deployment_opening(d: dict[str, object]) -> str:
+    """The deployment paragraph's first sentence, from a report's ``deploy`` section."""
+    return (
+        f"Deployment: {d['file']} ({d['backend']}, {d['precision']}), {d['env']}/{d['track']}, "
+        f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences)."
+    )

@@ -12,9 +12,9 @@ across env steps, is cloned on windows of consecutive steps with a burn-in (:dat
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 import torch
@@ -32,7 +32,22 @@ BC_SCHEMA = "snnkart/bc/v1"
 and the losses and accuracy after each epoch."""
 
 
-def load_for(cfg: TrainConfig, spec: dict[str, Any]) -> Recording:
+class BcSummary(TypedDict):
+    """What a run keeps of its behaviour cloning (``bc.json`` without its schema)."""
+
+    data: str
+    sha256: str
+    steps: int
+    episodes: int
+    driver: str | None
+    epochs: int
+    value: bool
+    actor_loss: list[float]  # per epoch
+    value_loss: list[float]
+    accuracy: list[float | None]  # None: continuous actions or a stateful actor
+
+
+def load_for(cfg: TrainConfig, spec: Mapping[str, object]) -> Recording:
     """The config's recording, checked against the env being trained (``spec``): another env,
     action mode, observation layout or env config is refused; another track is not."""
     assert cfg.bc is not None
@@ -43,7 +58,7 @@ def load_for(cfg: TrainConfig, spec: dict[str, Any]) -> Recording:
 
 def behaviour_clone(
     policy: ActorCritic, obs_rms: RunningMeanStd, cfg: TrainConfig, rec: Recording
-) -> dict[str, Any]:
+) -> BcSummary:
     """Fit ``policy`` (in place) to ``rec`` for ``cfg.bc.epochs`` epochs; ``obs_rms`` takes
     the recording's statistics. Returns the summary (losses per epoch) that the run keeps."""
     bc = cfg.bc
@@ -56,7 +71,9 @@ def behaviour_clone(
     returns = torch.as_tensor(returns_to_go(rec.rewards, rec.episode_starts, cfg.ppo.gamma))
     optimizer = torch.optim.Adam(policy.parameters(), lr=bc.learning_rate, eps=1e-5)
     gen = torch.Generator().manual_seed(cfg.seed)
-    history: dict[str, list[Any]] = {"actor_loss": [], "value_loss": [], "accuracy": []}
+    actor_losses: list[float] = []
+    value_losses: list[float] = []
+    accuracies: list[float | None] = []
     policy.train()
     for _ in range(bc.epochs):
         sums = np.zeros(3)
@@ -72,13 +89,14 @@ def behaviour_clone(
             policy.clamp_parameters()
             n = int(kept.sum())
             sums += [n * actor_loss.item(), n * value_loss.item(), n]
-        history["actor_loss"].append(float(sums[0] / sums[2]))
-        history["value_loss"].append(float(sums[1] / sums[2]))
-        history["accuracy"].append(_accuracy(policy, obs, raw, actions))
+        actor_losses.append(float(sums[0] / sums[2]))
+        value_losses.append(float(sums[1] / sums[2]))
+        accuracies.append(_accuracy(policy, obs, raw, actions))
     return {
         "data": str(bc.data), "sha256": _sha256(Path(bc.data)), "steps": len(obs),
         "episodes": rec.episodes, "driver": rec.meta.get("driver"), "epochs": bc.epochs,
-        "value": bc.value, **history,
+        "value": bc.value, "actor_loss": actor_losses, "value_loss": value_losses,
+        "accuracy": accuracies,
     }  # fmt: skip
 
 
@@ -140,10 +158,10 @@ def warm_start(
     policy: ActorCritic,
     obs_rms: RunningMeanStd,
     cfg: TrainConfig,
-    spec: dict[str, Any],
+    spec: Mapping[str, object],
     run_dir: Path,
     new_run: bool = True,
-) -> dict[str, Any] | None:
+) -> BcSummary | None:
     """Clone the config's recording (``cfg.bc``; None: nothing to do) into a new run's
     ``policy`` and keep the summary in ``run_dir/bc.json``; a resumed run (not ``new_run``)
     does not clone again: its checkpoint holds the result."""

@@ -10,9 +10,10 @@ from __future__ import annotations
 import io
 import json
 import platform
+from collections.abc import Mapping
 from importlib import metadata as importlib_metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import torch
 
@@ -21,8 +22,53 @@ from snnkart.envs.spec import env_spec, revision_mismatch, spec_differences, spe
 from snnkart.errors import CheckpointError, CheckpointWriteError
 from snnkart.faults import fault_point
 from snnkart.io import atomic_path
+from snnkart.rl.rollout import ProgressState
 
 CHECKPOINT_SCHEMA = "snnkart/checkpoint/v1"
+
+
+class Generators(TypedDict, total=False):
+    """How a checkpoint restores the minibatch shuffling (one of the two)."""
+
+    numpy_seed: int  # a history checkpoint: the minibatch shuffling is re-seeded from it
+    numpy_state: Mapping[str, object]  # a latest-only one: the generator's own state
+
+
+class CheckpointState(Generators):
+    """What a checkpoint's .pt holds besides its metadata (``meta_json``)."""
+
+    policy: dict[str, torch.Tensor]
+    optimizer: dict[str, object]
+    obs_rms: dict[str, torch.Tensor]
+    progress: ProgressState
+    torch_rng: torch.Tensor
+
+
+class EvalScore(TypedDict):
+    """A periodic evaluation (:mod:`snnkart.rl.periodic_eval`; ``best.pt``'s ``eval``)."""
+
+    success_rate: float
+    mean_return: float
+    global_step: int
+    iteration: int
+    episodes: int
+    seed: int
+
+
+class _Meta(ProgressState):
+    policy: str
+    env_spec: dict[str, object]  # snnkart.envs.spec.env_spec
+    env_spec_hash: str
+    config: dict[str, object]  # the training config, as config.toml has it
+    track: dict[str, str]  # snnkart.envs.tracks.embed_track
+    stopped_early: bool
+
+
+class CheckpointMeta(_Meta, total=False):
+    """A checkpoint's metadata as training writes it (:func:`save_checkpoint` adds ``schema``
+    and ``versions``); ``eval``: the best checkpoint's evaluation."""
+
+    eval: EvalScore
 
 
 def versions() -> dict[str, str]:
@@ -35,14 +81,14 @@ def versions() -> dict[str, str]:
     return out
 
 
-def save_checkpoint(path: Path, state: dict[str, Any], meta: dict[str, Any]) -> None:
+def save_checkpoint(path: Path, state: CheckpointState, meta: CheckpointMeta) -> None:
     """Write ``path`` (.pt, tensors and plain values) and ``path.with_suffix('.json')``.
 
     The metadata is also stored inside the .pt file, which is replaced atomically, so the pair
     can never disagree: a process killed between the two renames leaves a .json that
     :func:`load_checkpoint` ignores in favour of the copy inside the .pt."""
-    meta = {"schema": CHECKPOINT_SCHEMA, "versions": versions(), **meta}
-    text = json.dumps(meta, indent=2) + "\n"
+    record = {"schema": CHECKPOINT_SCHEMA, "versions": versions(), **meta}
+    text = json.dumps(record, indent=2) + "\n"
     buffer = io.BytesIO()  # serialised first: torch's own file writer hides why a write failed
     torch.save({**state, "meta_json": text}, buffer)
     try:
@@ -92,12 +138,13 @@ def load_checkpoint(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     return state, meta
 
 
-def check_compatible(meta: dict[str, Any], env: KartEnv, source: str) -> None:
+def check_compatible(meta: Mapping[str, object], env: KartEnv, source: str) -> None:
     """Raise a clear error if the checkpoint was trained on a different env spec."""
     spec = env_spec(env)
     if meta.get("env_spec_hash") == spec_hash(spec):
         return
-    saved = meta.get("env_spec", {})
+    saved = meta.get("env_spec")
+    saved = saved if isinstance(saved, dict) else {}
     mismatch = revision_mismatch(saved.get("revision"))
     if mismatch:
         raise CheckpointError(f"{source} was trained on {mismatch}; retrain the run")

@@ -7,6 +7,7 @@ The resolved config is written into every run directory (``config.toml``) and is
 from __future__ import annotations
 
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, get_args
 
@@ -70,7 +71,7 @@ class _TrainConfig(BaseModel):
     policy: str = Field("snn", description="the policy kind (snnkart.rl.kinds)")
     total_steps: int = Field(300_000, ge=1)
     seed: int = 1
-    env_config: dict[str, Any] = Field(default_factory=dict)
+    env_config: dict[str, object] = Field(default_factory=dict)
     ppo: PPOConfig = PPOConfig()
     ann: ANNConfig = ANNConfig()
     snn: SNNConfig = SNNConfig()
@@ -150,7 +151,7 @@ class _TrainConfig(BaseModel):
 
 def _with_kind_sections(base: type[_TrainConfig]) -> type[_TrainConfig]:
     """``base`` with a section for every kind that declares one of its own (``[rsnn]``)."""
-    sections: dict[str, Any] = {
+    sections: dict[str, tuple[type, object]] = {
         k.name: (k.section, k.section())
         for k in kinds.all_kinds()
         if k.section is not None and k.name not in base.model_fields
@@ -176,13 +177,14 @@ def _lists(obj: Any) -> Any:
     return obj
 
 
-def _set_dotted(data: dict[str, Any], key: str, value: Any) -> None:
+def _set_dotted(data: dict[str, object], key: str, value: object) -> None:
     parts = key.split(".")
     node = data
     for p in parts[:-1]:
-        node = node.setdefault(p, {})
-        if not isinstance(node, dict):
+        child = node.setdefault(p, {})
+        if not isinstance(child, dict):
             raise ConfigError(f"--set {key}: {p!r} is not a section")
+        node = child
     node[parts[-1]] = value
 
 
@@ -200,11 +202,11 @@ def parse_override(text: str) -> tuple[str, Any]:
 
 def load_config(
     path: str | Path | None = None,
-    overrides: dict[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     sets: list[str] | None = None,
 ) -> TrainConfig:
     """Defaults <- TOML file <- ``overrides`` (CLI flags) <- ``sets`` (``--set key=value``)."""
-    data: dict[str, Any] = {}
+    data: dict[str, object] = {}
     if path is not None:
         p = Path(path)
         if not p.is_file():
@@ -248,7 +250,7 @@ def read_run_config(run_dir: str | Path) -> TrainConfig:
 
 
 def validate_config(
-    data: dict[str, Any], source: str = "config", *, resolved: bool = False
+    data: Mapping[str, object], source: str = "config", *, resolved: bool = False
 ) -> TrainConfig:
     """`data` as a TrainConfig; `resolved`: a run's saved config, given every key it had."""
     try:

@@ -4,14 +4,13 @@
 from __future__ import annotations
 
 import warnings
-from typing import Any
 
 RENAMED_KEYS: dict[tuple[str, str], str] = {("ppo", "num_steps"): "rollout_steps"}
 """Config keys that were renamed, ``(section, old) -> new``: the old name still loads (saved
 runs, old config files, ``--set``), with a warning where a user typed it."""
 
 
-def renamed_keys(data: dict[str, Any], warn: bool) -> dict[str, Any]:
+def renamed_keys(data: dict[str, object], warn: bool) -> dict[str, object]:
     """``data`` with every renamed key under its new name; both names at once is an error."""
     for (section, old), new in RENAMED_KEYS.items():
         given = data.get(section)

@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.contract.report_record import Int8LayerRecord
 from snnkart.errors import CheckpointError
 
 INT8_MAX = 127
@@ -114,7 +115,7 @@ class Int8Mlp:
             return acc.argmax(-1)
         return np.clip(acc * self.out_scale, -1.0, 1.0).astype(np.float32)
 
-    def describe(self) -> list[dict[str, Any]]:
+    def describe(self) -> list[Int8LayerRecord]:
         """The scales and integer widths per layer, for the report."""
         return [
             {

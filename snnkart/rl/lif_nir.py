@@ -142,7 +142,11 @@ def _check_graph(graph: Any, layers: tuple[LayerSpec, ...], readout_node: str) -
     vectors whose time constants give back the trained decays."""
     import nir
 
-    expected: dict[str, Any] = {"input": nir.Input, "output": nir.Output, readout_node: nir.Affine}
+    expected: dict[str, type | tuple[type, ...]] = {
+        "input": nir.Input,
+        "output": nir.Output,
+        readout_node: nir.Affine,
+    }
     for spec in layers:
         expected[spec.node] = nir.LIF if spec.alpha is None else nir.CubaLIF
         expected[str(int(spec.node) - 1)] = (nir.Affine, nir.Linear)  # Linear: no bias

@@ -17,9 +17,9 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from typing import Any
 
 from snnkart.envs.tracks import Track
+from snnkart.rl.checkpoint import CheckpointMeta, CheckpointState, EvalScore
 from snnkart.rl.config import TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.policies import ActorCritic
@@ -27,7 +27,7 @@ from snnkart.rl.rollout import Progress
 from snnkart.rl.run_dir import RunDir
 from snnkart.rl.stopping import seeded_episodes
 
-Checkpoint = Callable[[], tuple[dict[str, Any], dict[str, Any]]]
+Checkpoint = Callable[[], tuple[CheckpointState, CheckpointMeta]]
 """Builds the state dict and metadata of the policy as it is now (without drawing from any
 of training's generators)."""
 
@@ -39,7 +39,7 @@ def eval_due(cfg: TrainConfig, progress: Progress) -> bool:
     return every > 0 and progress.global_step // every > progress.eval_mark
 
 
-def score_key(score: dict[str, Any]) -> tuple[float, float]:
+def score_key(score: EvalScore) -> tuple[float, float]:
     """What ranks evaluations: the success rate, then the mean return."""
     return (float(score["success_rate"]), float(score["mean_return"]))
 
@@ -50,7 +50,7 @@ class PeriodicEval:
     def __init__(self, cfg: TrainConfig, out: RunDir) -> None:
         self.cfg = cfg
         self.out = out
-        self.best: dict[str, Any] | None = None
+        self.best: EvalScore | None = None
         """The best evaluation so far (of this run's ``best.pt``, also before a resume)."""
         meta = out.best.with_suffix(".json")
         if out.best.is_file() and meta.is_file():
@@ -64,7 +64,7 @@ class PeriodicEval:
         track: Track,
         interrupted: Callable[[], bool],
         checkpoint: Checkpoint,
-    ) -> dict[str, Any]:
+    ) -> dict[str, float]:
         """Evaluate if due; write ``best.pt`` if it beats the best; return what the metrics
         record (nothing if no evaluation was due or an interrupt cut it short: it is then
         still due)."""
@@ -77,7 +77,7 @@ class PeriodicEval:
         if scores is None:
             return {}
         progress.eval_mark = progress.global_step // ev.every_steps
-        score = {
+        score: EvalScore = {
             "success_rate": scores[0],
             "mean_return": scores[1],
             "global_step": progress.global_step,

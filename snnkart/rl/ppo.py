@@ -18,7 +18,6 @@ import math
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
@@ -30,13 +29,14 @@ from snnkart.envs.tracks import embed_track, load_track
 from snnkart.errors import RunError
 from snnkart.rl.bc import warm_start
 from snnkart.rl.buffer import Batch, RolloutBuffer, Sequences, compute_gae, minibatches
+from snnkart.rl.checkpoint import CheckpointMeta, CheckpointState, Generators
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.kinds import policy_for
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
 from snnkart.rl.periodic_eval import PeriodicEval
 from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
-from snnkart.rl.rollout import IterationStats, Progress, Rollout, normalize_obs
+from snnkart.rl.rollout import IterationStats, Progress, Rollout, TrainResult, normalize_obs
 from snnkart.rl.run_dir import RunDir, resolved_env_config
 from snnkart.rl.stopping import check, stopped
 
@@ -97,6 +97,7 @@ class Trainer:
         self.cfg = cfg = resolved_env_config(cfg, self.env0)  # config.toml: the whole env
         self.evals = PeriodicEval(cfg, self.out)
         self.spec = env_spec(self.env0)
+        self.obs_dim = int(self.env0.observation_space.low.shape[0])  # the spec's obs_dim
         torch.manual_seed(cfg.seed)
         self.policy = policy_for(cfg, self.env0) if opened is None else opened.policy
         self.optimizer = torch.optim.Adam(
@@ -104,7 +105,7 @@ class Trainer:
         )
         self.ent_coef = p.ent_coef  # annealed with the learning rate when ppo.anneal_ent
         self.penalty_weights = self.policy.penalty_weights(0.0)  # the kind's extra loss terms
-        self.obs_rms = RunningMeanStd.zeros(self.spec["obs_dim"])
+        self.obs_rms = RunningMeanStd.zeros(self.obs_dim)
         # behaviour cloning (cfg.bc) of a new run; a resumed run's checkpoint holds the clone
         self.bc = warm_start(
             self.policy, self.obs_rms, cfg, self.spec, self.run_dir, opened is None
@@ -143,15 +144,15 @@ class Trainer:
         run computes."""
         return self.out.save(*self._checkpoint(history), self.progress.iteration, history)
 
-    def _checkpoint(self, history: bool = False) -> tuple[dict[str, Any], dict[str, Any]]:
+    def _checkpoint(self, history: bool = False) -> tuple[CheckpointState, CheckpointMeta]:
         """The checkpoint's state dict and metadata (see :meth:`save`); without ``history``
         nothing is drawn from the run's generators."""
-        rng: dict[str, Any] = (
+        rng: Generators = (
             {"numpy_seed": int(self.rng.integers(2**62))}
             if history
             else {"numpy_state": self.rng.bit_generator.state}
         )
-        state = {
+        state: CheckpointState = {
             "policy": self.policy.state_dict(),
             "optimizer": self.optimizer.state_dict(),
             "obs_rms": self.obs_rms.state(),
@@ -159,7 +160,7 @@ class Trainer:
             "torch_rng": torch.get_rng_state(),
             **rng,
         }
-        meta = {
+        meta: CheckpointMeta = {
             "policy": self.cfg.policy,
             "env_spec": self.spec,
             "env_spec_hash": spec_hash(self.spec),
@@ -172,7 +173,7 @@ class Trainer:
 
     def train(
         self,
-        on_iteration: Callable[[dict[str, Any]], None] | None = None,
+        on_iteration: Callable[[dict[str, float | None]], None] | None = None,
         save_every_iteration: bool = False,
     ) -> Progress:
         """Run until ``total_steps`` (or until the ``stop`` rule ends the run); Ctrl-C or
@@ -221,7 +222,7 @@ class Trainer:
         p, needs = self.cfg.ppo, self.policy.buffer_needs()
         discrete = self.policy.discrete
         return RolloutBuffer.allocate(
-            p.rollout_steps, p.num_envs, self.spec["obs_dim"],
+            p.rollout_steps, p.num_envs, self.obs_dim,
             () if discrete else (self.policy.action_dim,), discrete, self.cfg.snn.num_steps,
             rate=needs.input_spikes, previous=needs.previous,
         )  # fmt: skip
@@ -234,7 +235,9 @@ class Trainer:
         self.ent_coef = frac * p.ent_coef if p.anneal_ent else p.ent_coef
         self.penalty_weights = self.policy.penalty_weights(1.0 - frac)
 
-    def _iteration(self, buf: RolloutBuffer, save_latest: bool = False) -> dict[str, Any] | None:
+    def _iteration(
+        self, buf: RolloutBuffer, save_latest: bool = False
+    ) -> dict[str, float | None] | None:
         """One iteration: rollout, GAE, update, record, checkpoint; None if an interrupt cut
         the rollout short (its progress and normaliser updates are then undone)."""
         p = self.cfg.ppo
@@ -343,9 +346,11 @@ class Trainer:
         losses: dict[str, float],
         rollout_time: float,
         update_time: float,
-    ) -> dict[str, Any]:
+    ) -> dict[str, float | None]:
+        """The iteration's line of ``metrics.jsonl``: counters, then TensorBoard's scalars by
+        name (None: nothing to average this iteration)."""
         steps = self.cfg.batch_size
-        record: dict[str, Any] = {
+        record: dict[str, float | None] = {
             "iteration": self.progress.iteration,
             "global_step": self.progress.global_step,
             "charts/episodic_return": float(np.mean(stats.returns)) if stats.returns else None,
@@ -378,10 +383,10 @@ def _interrupted() -> bool:
 def train(
     cfg: TrainConfig,
     run_dir: Path,
-    on_iteration: Callable[[dict[str, Any]], None] | None = None,
+    on_iteration: Callable[[dict[str, float | None]], None] | None = None,
     threads: int | None = None,
     save_every_iteration: bool = False,
-) -> dict[str, Any]:
+) -> TrainResult:
     """One run as a plain function (the launchers' unit of work): train ``cfg`` into
     ``run_dir``, resuming the run already there, calling ``on_iteration`` with every
     iteration's metrics record; return its progress counters and whether it was interrupted.

@@ -8,9 +8,9 @@ then the episode is cut for GAE. Termination (finish, crash, standing still) is 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypedDict, cast
 
 import gymnasium as gym
 import numpy as np
@@ -33,13 +33,13 @@ class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
 
     KEYS = ("lap_finished", "crashed", "elapsed_time", "position")
 
-    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, object]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
         if terminated or truncated:
             return obs, reward, terminated, truncated, {k: info[k] for k in self.KEYS}
         return obs, reward, terminated, truncated, {}
 
-    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, object]]:
         obs, _ = self.env.reset(**kwargs)
         return obs, {}
 
@@ -49,6 +49,27 @@ def normalize_obs(rms: RunningMeanStd, ppo: PPOConfig, raw: np.ndarray) -> np.nd
     if ppo.norm_obs:
         return rms.normalize(raw, ppo.clip_obs)
     return np.asarray(raw, dtype=np.float32)
+
+
+class ProgressState(TypedDict):
+    """:class:`Progress` as checkpoints store it (``state["progress"]``, and in the metadata)."""
+
+    global_step: int
+    iteration: int
+    episodes: int
+    finishes: int
+    first_finish_step: int
+    stop_mark: int
+    stop_streak: int
+    eval_mark: int
+
+
+class TrainResult(ProgressState):
+    """What a run's training ended with (:func:`snnkart.rl.ppo.train`): its counters, and
+    whether it was interrupted or stopped early by the ``stop`` rule."""
+
+    interrupted: bool
+    stopped_early: bool
 
 
 @dataclass
@@ -67,8 +88,8 @@ class Progress:
     eval_mark: int = 0
     """How many multiples of ``eval.every_steps`` the periodic evaluations have handled."""
 
-    def state(self) -> dict[str, int]:
-        return dict(self.__dict__)
+    def state(self) -> ProgressState:
+        return cast(ProgressState, dict(self.__dict__))  # its fields, in order
 
 
 @dataclass
@@ -139,7 +160,7 @@ class Rollout:
         if policy.carries_state and self.actor_state is None:
             self.actor_state = policy.initial_state(E)
         self.start_state = self.actor_state
-        extra: dict[str, Any] = {}
+        extra: dict[str, torch.Tensor] = {}
         for step in range(p.rollout_steps):
             progress.global_step += E
             if p.norm_obs:
@@ -200,11 +221,12 @@ class Rollout:
         self.ep_return += reward
         self.ep_length += 1
         if truncated.any():
-            reward = reward + self.ppo.gamma * self.final_values(policy, obs_rms, info, truncated)
+            final = self.final_values(policy, obs_rms, info["final_obs"], truncated)
+            reward = reward + self.ppo.gamma * final
         buf.rewards[step] = torch.from_numpy(reward.astype(np.float32))
         buf.ends[step] = torch.from_numpy(done.astype(np.float32))
         for i in np.flatnonzero(done):
-            self._episode_end(info, i, progress, stats)
+            self._episode_end(info["final_info"], i, progress, stats)
 
     def sequences(self, buf: RolloutBuffer) -> Sequences | None:
         """The last rollout as env sequences (a stateful actor's), else None."""
@@ -229,13 +251,14 @@ class Rollout:
         self,
         policy: ActorCritic,
         obs_rms: RunningMeanStd,
-        info: dict[str, Any],
+        final_obs: np.ndarray,
         truncated: np.ndarray,
     ) -> np.ndarray:
-        """V(final observation) for truncated envs, 0 elsewhere (the time-limit bootstrap)."""
+        """V(final observation) for truncated envs, 0 elsewhere (the time-limit bootstrap);
+        ``final_obs``: the vector env's ``info["final_obs"]``."""
         values = np.zeros(truncated.shape[0])
         idx = np.flatnonzero(truncated)
-        final = np.stack([info["final_obs"][i] for i in idx])
+        final = np.stack([final_obs[i] for i in idx])
         norm = normalize_obs(obs_rms, self.ppo, final)
         with torch.no_grad():
             values[idx] = policy.value(torch.from_numpy(norm)).numpy()
@@ -248,9 +271,9 @@ class Rollout:
             return policy.value(torch.from_numpy(last_norm))
 
     def _episode_end(
-        self, info: dict[str, Any], i: int, progress: Progress, stats: IterationStats
+        self, final: Mapping[str, np.ndarray], i: int, progress: Progress, stats: IterationStats
     ) -> None:
-        final = info["final_info"]
+        """Env ``i``'s episode ended; ``final``: the vector env's ``info["final_info"]``."""
         finished = bool(final["lap_finished"][i])
         progress.episodes += 1
         stats.returns.append(float(self.ep_return[i]))

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,23 +21,26 @@ import numpy as np
 
 from snnkart.envs.base import KartEnv
 from snnkart.envs.spec import env_spec, spec_hash, trained_env_config
-from snnkart.envs.tracks import Track, embedded_track, load_track
+from snnkart.envs.tracks import Track, TrackError, embedded_track, load_track
 from snnkart.errors import CheckpointError
 from snnkart.io import atomic_path
-from snnkart.rl.checkpoint import save_checkpoint
+from snnkart.rl.checkpoint import CheckpointMeta, CheckpointState, save_checkpoint
 from snnkart.rl.config import TrainConfig, read_run_config
 from snnkart.rl.wandb_log import WandbLogger
 
 
-def checkpoint_track(meta: dict[str, Any], cfg: TrainConfig, source: Path) -> Track:
+def checkpoint_track(meta: Mapping[str, object], cfg: TrainConfig, source: Path) -> Track:
     """The track a checkpoint was trained on: the one embedded in it, or for checkpoints
     written before tracks were embedded, ``cfg.track`` (which must then still exist)."""
-    if meta.get("track"):
-        return embedded_track(meta["track"], str(source))
-    return load_track(cfg.track)
+    track = meta.get("track")
+    if not track:
+        return load_track(cfg.track)
+    if not isinstance(track, dict):
+        raise TrackError(f"{source}: malformed embedded track (not a table: {track!r})")
+    return embedded_track(track, str(source))
 
 
-def trained_config(meta: dict[str, Any], cfg: TrainConfig, track: Track) -> TrainConfig:
+def trained_config(meta: Mapping[str, object], cfg: TrainConfig, track: Track) -> TrainConfig:
     """``cfg``; or, where the env it describes today is not the one the checkpoint was trained
     in (a default changed since), ``cfg`` with the env config the checkpoint was trained with
     (:func:`snnkart.envs.spec.trained_env_config`) under the settings ``cfg`` makes itself."""
@@ -46,7 +50,8 @@ def trained_config(meta: dict[str, Any], cfg: TrainConfig, track: Track) -> Trai
         same = meta.get("env_spec_hash") == spec_hash(today)
     finally:
         env.close()
-    trained = None if same else trained_env_config(meta.get("env_spec", {}))
+    saved = meta.get("env_spec")
+    trained = None if same or not isinstance(saved, dict) else trained_env_config(saved)
     if trained is None:
         return cfg
     # what the run's config sets stays set (a contradiction is then reported, not hidden)
@@ -113,7 +118,7 @@ def _no_best(run_dir: Path) -> str:
     )
 
 
-def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+def _merged(base: Mapping[str, object], over: Mapping[str, object]) -> dict[str, object]:
     out = dict(base)
     for key, value in over.items():
         old = out.get(key)
@@ -168,7 +173,7 @@ class RunDir:
             tmp.write_text(cfg.to_toml())
 
     def save(
-        self, state: dict[str, Any], meta: dict[str, Any], iteration: int, history: bool = True
+        self, state: CheckpointState, meta: CheckpointMeta, iteration: int, history: bool = True
     ) -> Path:
         """Write ``checkpoint.pt`` (latest) and, with ``history``, a copy under
         ``checkpoints/``."""
@@ -177,7 +182,7 @@ class RunDir:
             save_checkpoint(self.path / "checkpoints" / f"iter_{iteration:06d}.pt", state, meta)
         return self.latest
 
-    def save_best(self, state: dict[str, Any], meta: dict[str, Any]) -> Path:
+    def save_best(self, state: CheckpointState, meta: CheckpointMeta) -> Path:
         """Write ``best.pt`` (and its .json), replacing the previous best."""
         save_checkpoint(self.best, state, meta)
         return self.best
@@ -193,7 +198,7 @@ class RunDir:
         if self.wandb is None:
             self.wandb = WandbLogger(self.path, cfg.model_dump(mode="json"))
 
-    def log(self, record: dict[str, Any], global_step: int) -> None:
+    def log(self, record: Mapping[str, float | None], global_step: int) -> None:
         """Append the iteration's record to metrics.jsonl and its scalars to TensorBoard (and
         W&B)."""
         with open(self.metrics_path, "a") as f:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import torch
 
@@ -93,7 +92,7 @@ def check(
     obs_rms: RunningMeanStd,
     track: Track,
     interrupted: Callable[[], bool],
-) -> dict[str, Any]:
+) -> dict[str, float]:
     """Run the check if one is due; update ``progress``; return what the metrics record."""
     stop = cfg.stop
     if not check_due(cfg, progress):

@@ -11,8 +11,8 @@ names the project (default ``snnkart``); the files go under ``run_dir/wandb/`` u
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 from snnkart.errors import UsageError
 
@@ -30,7 +30,7 @@ def require_wandb() -> None:
 class WandbLogger:
     """One W&B run beside a training run's TensorBoard scalars."""
 
-    def __init__(self, run_dir: Path, config: dict[str, Any]) -> None:
+    def __init__(self, run_dir: Path, config: dict[str, object]) -> None:
         require_wandb()
         import wandb
 
@@ -44,7 +44,7 @@ class WandbLogger:
             config=config,
         )
 
-    def log(self, record: dict[str, Any], global_step: int) -> None:
+    def log(self, record: Mapping[str, float | None], global_step: int) -> None:
         """Log the record's scalars (the keys TensorBoard gets) at ``global_step``."""
         scalars = {k: v for k, v in record.items() if "/" in k and v is not None}
         self.run.log(scalars, step=global_step)

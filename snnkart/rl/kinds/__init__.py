@@ -74,7 +74,7 @@ def choices_help() -> str:
     return "; ".join(f"{e.name}: {e.help}" for e in REGISTRY.values())
 
 
-_LOADED: dict[str, Any] = {}
+_LOADED: dict[str, Kind] = {}
 
 
 def kind(name: str) -> Kind:
@@ -85,7 +85,7 @@ def kind(name: str) -> Kind:
         if declared.name != name:
             raise RuntimeError(f"{module.__name__} declares kind {declared.name!r}, not {name!r}")
         _LOADED[name] = declared
-    return _LOADED[name]  # type: ignore[no-any-return]
+    return _LOADED[name]
 
 
 def all_kinds() -> tuple[Kind, ...]:

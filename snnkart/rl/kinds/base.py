@@ -12,7 +12,7 @@ from pydantic import BaseModel
 
 from snnkart.rl.actor_critic import ActorCritic
 
-Defaults = dict[str, dict[str, Any]]
+Defaults = dict[str, dict[str, object]]
 """Config defaults by section: ``{"ppo": {"learning_rate": 1e-3}}``."""
 
 

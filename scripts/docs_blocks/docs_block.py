@@ -51,8 +51,14 @@ def energy_block(report: dict[str, Any], source: str) -> str:
     (the goal's answer first for a sigma-delta report) and the verdict per pair of platforms."""
     check_version(report, source)
     if report.get("kind") == "sigma-delta":
-        return "\n\n".join([BEGIN.format(source=source), sd_sentence(report),
-                             md_table(chip_rows(report)).rstrip(), END])  # fmt: skip
+        return "\n\n".join(
+            [
+                BEGIN.format(source=source),
+                sd_sentence(report),
+                md_table(chip_rows(report)).rstrip(),
+                END,
+            ]
+        )
     deploy = report["deploy"]
     where = (
         f"Deployment: `{deploy.get('backend', '?')}` ({deploy.get('precision', '?')}), "

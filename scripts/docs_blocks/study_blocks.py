@@ -8,10 +8,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from docs_blocks.main_job_block import bench_commit
 from snnkart.envs.tracks import short_name
 from snnkart.errors import ReportError
 from snnkart.report.held_out import held_out_lines
-from snnkart.report.main_job_block import bench_commit
 from snnkart.report.study_document import (
     deployed_lines,
     spread_count,
@@ -39,8 +39,9 @@ def check_publishable(record: StudyRecord, source: str) -> str:
     return commit
 
 
-def study_block(record: StudyRecord, source: str, begin: str, end: str,
-                original: dict[str, dict[str, float]]) -> str:  # fmt: skip
+def study_block(
+    record: StudyRecord, source: str, begin: str, end: str, original: dict[str, dict[str, float]]
+) -> str:
     """The block: what was run and where, each track's table, and the held-out table."""
     commit = check_publishable(record, source)
     study, w = record.study, record.wall_clock
@@ -101,8 +102,10 @@ def every_seed_block(records: list[tuple[StudyRecord, str]], begin: str, end: st
         for track in record.tracks():
             row = []
             for env, kind in columns:
-                cell = next((c for c in record.cells
-                             if (c.track, c.env, c.policy) == (track, env, kind)), None)  # fmt: skip
+                cell = next(
+                    (c for c in record.cells if (c.track, c.env, c.policy) == (track, env, kind)),
+                    None,
+                )
                 if cell is None:
                     row.append("-")
                     continue
@@ -114,8 +117,9 @@ def every_seed_block(records: list[tuple[StudyRecord, str]], begin: str, end: st
     return "\n".join([*lines, "", end])
 
 
-def cells_block(rows: list[tuple[StudyRecord, str, CellSummary]], begin: str, end: str,
-                intro: str) -> str:  # fmt: skip
+def cells_block(
+    rows: list[tuple[StudyRecord, str, CellSummary]], begin: str, end: str, intro: str
+) -> str:
     """Chosen cells of one or more reporting studies, a row each (an ablation's variants, or one
     env and policy kind across studies): first finish, steps to the study's finishes mark,
     evaluation success, spikes and synaptic operations per env step, medians (min–max)."""
@@ -150,15 +154,20 @@ def cells_block(rows: list[tuple[StudyRecord, str, CellSummary]], begin: str, en
 
 def _cell_name(record: StudyRecord, c: CellSummary) -> str:
     """track · env · POLICY · variant, with the variant's settings (``base``: none)."""
-    sets = next((v for k, v in record.study.variants.items()
-                 if k.rpartition(":")[2] == c.variant), [])  # fmt: skip
+    sets = next(
+        (v for k, v in record.study.variants.items() if k.rpartition(":")[2] == c.variant), []
+    )
     name = " · ".join(x for x in (short_name(c.track), c.env, c.policy.upper(), c.variant) if x)
     return name + (f" (`{'`, `'.join(sets)}`)" if sets else "")
 
 
-def regenerate_block(studies: list[tuple[StudyRecord, str, str]],
-                     main_job: tuple[dict[str, Any], str], begin: str, end: str,
-                     jobs: int = 2) -> str:  # fmt: skip
+def regenerate_block(
+    studies: list[tuple[StudyRecord, str, str]],
+    main_job: tuple[dict[str, Any], str],
+    begin: str,
+    end: str,
+    jobs: int = 2,
+) -> str:
     """How each published result is made again and what it cost on the machine that made it:
     per study its config, command and runs, the wall-clock of training and evaluation as its
     record measured them, and its runs' own training time summed (a study started again reuses
