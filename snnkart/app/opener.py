@@ -93,7 +93,7 @@ def choose(
     as it trained and ignores it), or a one-line error naming the problem and the fix."""
     word = precision_word(backend, precision, backends)
     path = Path(path)
-    run_dir = locate(path)
+    run_dir = locate(path, exported=backend != "torch")
     if run_dir is None:
         if backend == "torch":
             raise UsageError(
@@ -112,7 +112,7 @@ def choose(
     return Target(path, backend, word, run_dir, checkpoint, sigma_delta)
 
 
-def locate(path: Path) -> Path | None:
+def locate(path: Path, exported: bool = False) -> Path | None:
     """The run directory ``path`` is (or holds the checkpoint ``path``: the directory with a
     ``config.toml`` beside it or one above, as ``checkpoints/iter_*.pt``), or None for a NIR
     file (any other file); a one-line error for a path that is neither."""
@@ -123,6 +123,9 @@ def locate(path: Path) -> Path | None:
             raise UsageError(f"no NIR file at {path}{MISSING_HINT}")
         raise UsageError(f"{path} does not exist; {GIVE}")
     if path.is_dir():
+        from snnkart.app.pipeline import refuse_main_job_folder
+
+        refuse_main_job_folder(path, exported)  # the main job's folder: names its SNN run
         if not (path / "config.toml").is_file():
             raise UsageError(f"{path} is not a run directory (no config.toml); {GIVE}")
         return path
