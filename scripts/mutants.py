@@ -13,7 +13,8 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
 - ``host-current-halved``: the host sends Lava half the first layer's current
   (``FixedPointNetwork.host_current``); guarded by ``tests/test_fixed_point.py``.
 - ``final-values-zero``: the PPO time-limit bootstrap drops ``gamma * V(final_obs)``
-  (``Rollout.final_values`` returns zeros); guarded by ``tests/test_gae.py``.
+  (``Rollout.final_values`` returns zeros); guarded by ``tests/test_gae.py`` and, on a
+  hand-made two-step gymnasium episode, ``tests/test_any_env_train.py``.
 - ``deploy-mismatch``: Lava returns one flipped spike in every window from the 6th on
   (``LavaSimPredictor.step``); guarded by the parity tests in ``tests/deploy/``.
 - ``parity-guard-off``: ``snnkart deploy`` no longer fails on a parity mismatch
@@ -42,7 +43,7 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
   guarded by ``tests/test_energy_terms.py``.
 - ``idle-update-active``: every chip is read as updating only its active neurons, so a clocked
   profile (Loihi) prices a sigma-delta inference's idle neurons at nothing
-  (``snnkart.energy.profiles.Profile.rule``); guarded by ``tests/test_sd_energy.py``.
+  (``snnkart.energy.profiles.Profile.rule``); guarded by ``tests/test_sigma_delta_energy.py``.
 - ``sd-threshold-strict``: the sigma-delta reference sends a message only when the change is
   strictly above its threshold (Lava's code sends at ``>=``; ``SigmaDeltaChain._encode``);
   guarded by the Lava parity tests of ``tests/test_sigma_delta.py``.
@@ -62,7 +63,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 MUTANTS = {
     "host-current-halved": ["tests/test_fixed_point.py"],
-    "final-values-zero": ["tests/test_gae.py"],
+    "final-values-zero": ["tests/test_gae.py", "tests/test_any_env_train.py"],
     "deploy-mismatch": ["tests/deploy", "-k", "bit_exact or cli_deploy"],
     "parity-guard-off": ["tests/deploy/test_deploy_parity.py", "-k", "parity_mismatch"],
     "sb3-constant-lr": ["tests/test_benchmarks.py", "-k", "bench_train"],
@@ -74,7 +75,7 @@ MUTANTS = {
     "resume-default-length": ["tests/test_resume_length.py", "-k", "keeps"],
     "shared-price-independent": ["tests/test_uncertainty.py"],
     "memory-row-8kb": ["tests/test_energy_terms.py"],
-    "idle-update-active": ["tests/test_sd_energy.py"],
+    "idle-update-active": ["tests/test_sigma_delta_energy.py"],
     "sd-threshold-strict": ["tests/test_sigma_delta.py", "-k", "bit_exact"],
     "stateful-forgets": ["tests/test_stateful.py", "-k", "torch_policy_equals"],
     "stateful-reference-resets": ["tests/test_stateful.py", "-k", "numpy_references_carry"],

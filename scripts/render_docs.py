@@ -120,6 +120,27 @@ REGENERATE = ("docs/results.md", ", ".join([*PUBLISHED, MAIN_JOB[1]]))
 """The page's table of how every published result is made again, and what it cost."""
 
 
+ZOO_PAGE = "docs/zoo.md"
+ZOO = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "docs/zoo").glob("*.json"))
+"""The zoo studies' records (``snnkart study studies/zoo/<task>.toml``, copied in), a table each."""
+
+
+def zoo_block(source: str) -> str:
+    """A zoo study's table, from reporting data at a clean commit only."""
+    from snnkart.errors import ReportError
+    from snnkart.report.zoo_record import ZooStudyRecord
+    from snnkart.report.zoo_table import zoo_markdown
+
+    record = ZooStudyRecord.read(ROOT / source)
+    commit = record.commit
+    if record.data != "reporting" or commit.endswith("-dirty") or commit == "unknown":
+        raise ReportError(
+            f"{source}: {record.data} data at commit {commit} cannot fill a published table; "
+            "run the zoo study again at a clean commit"
+        )
+    return "\n".join([BEGIN.format(source=source), "", zoo_markdown([record]).rstrip(), "", END])
+
+
 def rendered(page: str, source: str) -> str:
     """The page's text with its generated block rendered from ``source``."""
     return replace_block((ROOT / page).read_text(), block(page, source), source)
@@ -132,6 +153,8 @@ def _records(source: str) -> list[tuple[StudyRecord, str]]:
 
 def block(page: str, source: str) -> str:
     """The generated block of ``page`` whose source is ``source``."""
+    if page == ZOO_PAGE:
+        return zoo_block(source)
     if (page, source) == MAIN_JOB:
         return main_job_block(json.loads((ROOT / source).read_text()), source, DEMO_SEED,
                               BEGIN, END)  # fmt: skip
@@ -165,6 +188,7 @@ def blocks() -> list[tuple[str, str]]:
         EVERY_SEED,
         *sorted(CELL_BLOCKS),
         REGENERATE,
+        *((ZOO_PAGE, source) for source in ZOO),
     ]
 
 

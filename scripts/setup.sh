@@ -51,7 +51,7 @@ MSG
 fi
 
 VENV=.venv
-extras="${SNNKART_EXTRAS:-dev,video}"   # CI: dev,bench,ray,video,sanafe,wandb (every optional part)
+extras="${SNNKART_EXTRAS:-dev,video}"   # CI: dev,bench,ray,video,sanafe,wandb,box2d,mujoco (every optional part)
 stamp="$VENV/.snnkart-installed"
 want="$(cat pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1) $PY [$extras]"
 if ! is_py310 "$VENV/bin/python"; then
@@ -64,6 +64,12 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   "$VENV/bin/python" -m pip install --quiet --upgrade pip
   # the tested versions (constraints.txt), so a fresh install reproduces the golden values
   "$VENV/bin/python" -m pip install --quiet -c constraints.txt -e ".[$extras]"
+  # NeuroBench's own metric code, the independent check of the closed-loop metrics
+  # (tests/test_neurobench_metrics.py): without its dependencies, which pin torchaudio and
+  # tonic; its metrics need only torch, snntorch and numpy
+  case ",$extras," in *,dev,*)
+    "$VENV/bin/python" -m pip install --quiet --no-deps -c constraints.txt neurobench==2.3.0 ;;
+  esac
   echo "$want" > "$stamp"
 fi
 
@@ -72,5 +78,9 @@ export PYGAME_HIDE_SUPPORT_PROMPT=1
 if [ "$job" = demo ]; then
   exec "$VENV/bin/snnkart" demo "$@"
 else
-  exec "$VENV/bin/python" -m pytest "$@"
+  # two workers (pytest-xdist): this machine's two cores; SNNKART_TEST_WORKERS=0 runs in one process
+  # --dist loadgroup keeps the tests of one xdist_group (the Ray tests) on one worker
+  workers="${SNNKART_TEST_WORKERS:-2}"
+  dist=(); [ "$workers" != 0 ] && dist=(--dist loadgroup)
+  exec "$VENV/bin/python" -m pytest -n "$workers" "${dist[@]}" "$@"
 fi

@@ -193,8 +193,10 @@ def fault_point(phase: str) -> None:
     def fire() -> None:
         if log:  # before the signal: SIGSTOP would hold the line back
             with open(log, "a") as f:
-                f.write(f"{phase}@{n}+{spec.delay_s}:{signal.Signals(spec.signum).name} "
-                        f"pid {os.getpid()} t={time.monotonic()}\n")  # fmt: skip
+                f.write(
+                    f"{phase}@{n}+{spec.delay_s}:{signal.Signals(spec.signum).name} "
+                    f"pid {os.getpid()} t={time.monotonic()}\n"
+                )
         with contextlib.suppress(ProcessLookupError):
             os.killpg(target, spec.signum)
 

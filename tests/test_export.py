@@ -49,6 +49,7 @@ RUNS = {
 SNN_RUNS = ["grid", "steer", "steer-continuous"]
 CHAIN = {
     "input": nir.Input,
+    "normalise": nir.Affine,  # the raw observation's normalisation (contract/obs_node.py)
     "0": nir.Affine,
     "1": nir.LIF,
     "2": nir.Affine,
@@ -56,7 +57,15 @@ CHAIN = {
     "4": nir.Affine,
     "output": nir.Output,
 }
-CHAIN_EDGES = {("input", "0"), ("0", "1"), ("1", "2"), ("2", "3"), ("3", "4"), ("4", "output")}
+CHAIN_EDGES = {
+    ("input", "normalise"),
+    ("normalise", "0"),
+    ("0", "1"),
+    ("1", "2"),
+    ("2", "3"),
+    ("3", "4"),
+    ("4", "output"),
+}
 PARITY_STEPS = 1000
 
 
@@ -115,6 +124,9 @@ def test_export_writes_the_expected_nir_chain(
         np.testing.assert_array_equal(node.weight, fc.weight.detach().numpy())
         np.testing.assert_array_equal(node.bias, fc.bias.detach().numpy())
     assert graph.nodes["0"].weight.shape[1] == run.meta["env_spec"]["obs_dim"]
+    std = np.sqrt(run.obs_rms.var + 1e-8)  # the normaliser's frozen statistics, as a node
+    np.testing.assert_allclose(graph.nodes["normalise"].weight, np.diag(1.0 / std), rtol=1e-15)
+    np.testing.assert_allclose(graph.nodes["normalise"].bias, -run.obs_rms.mean / std, rtol=1e-15)
     assert graph.nodes["4"].weight.shape[0] == policy.action_dim
 
     layers = (("1", actor.lif1, actor.fc1.out_features), ("3", actor.lif2, actor.fc2.out_features))
@@ -174,7 +186,7 @@ def test_manifest_round_trips_and_describes_the_run(
     assert Manifest.from_json(manifest.to_json()) == manifest
 
     cfg = run.config
-    assert manifest.schema == MANIFEST_SCHEMA == "snnkart/manifest/v3"
+    assert manifest.schema == MANIFEST_SCHEMA == "snnkart/manifest/v4"
     assert manifest.nir_file == "policy.nir"
     assert manifest.nir_dt == NIR_DT
     assert manifest.num_steps == cfg.snn.num_steps == 8

@@ -16,7 +16,7 @@ from snnkart.app.study_eval import converted, eval_backend
 from snnkart.app.study_run import load_study, plan
 from snnkart.cli import app
 from snnkart.contract.deploy_record import DeployRecord
-from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sigma_delta_counts import SigmaDeltaCounts
 from snnkart.report.frontier import frontier
 from snnkart.report.study_record import StudyRecord
 

@@ -13,7 +13,7 @@ from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.goal import FP32, INT8, Priced, decide, priced_policy
 from snnkart.energy.pricing import Term
 from snnkart.energy.profiles import Price, Profile, load_profile
-from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sigma_delta_counts import SigmaDeltaCounts
 
 
 def _profile(name: str, kind: str, **ranges: tuple[float, float, float]) -> Profile:
@@ -22,7 +22,7 @@ def _profile(name: str, kind: str, **ranges: tuple[float, float, float]) -> Prof
 
 
 def _term(part: str, count: float, profile: Profile, op: str) -> Term:
-    return Term(part, part, count, profile.name, op, profile[op], "test")
+    return Term(part, part, count, profile.name, op, profile.prices[op])
 
 
 def _priced(chip: str, synops: float, updates: float, ann: dict[str, float],
@@ -33,7 +33,7 @@ def _priced(chip: str, synops: float, updates: float, ann: dict[str, float],
     d = _profile("digital", "digital", mac=(1.0, 1.0, 1.0))
     snn = (_term("synaptic ops", synops, c, "synaptic_op"),
            _term("neuron updates", updates, c, "neuron_update"))  # fmt: skip
-    return [Priced(chip, b, snn, (_term("host compute", macs, d, "mac"),), (c, d))
+    return [Priced(chip, b, snn, (_term("host compute", macs, d, "mac"),), (c, d), 1 / 60)
             for b, macs in ann.items()]  # fmt: skip
 
 

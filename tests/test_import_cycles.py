@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "snnkart"
-REGISTRIES = ("snnkart.backends.registry", "snnkart.rl.kinds")
+REGISTRIES = ("snnkart.backends.registry", "snnkart.rl.kinds", "snnkart.envs.resolve")
 """The modules that import by name: the backend registry (its table of backend classes) and the
 kinds registry (a kind's module, named by its registry line, imported when the kind is used)."""
 

@@ -298,3 +298,15 @@ def test_snntorchs_recurrent_graph_is_bit_exact_on_lava(arithmetic: str) -> None
     _, lava = _open_loop("lava-sim", arithmetic)
     assert reference.logical[:, 10:].sum() > 0
     assert compare(reference, lava)["bit_exact"]
+
+
+def test_nir_info_names_the_cycle_and_how_it_runs() -> None:
+    from typer.testing import CliRunner
+
+    from snnkart.cli.main import app
+
+    result = CliRunner().invoke(app, ["nir", "info", str(RLEAKY)])
+    assert result.exit_code == 0, result.output
+    cycles = [line for line in result.output.splitlines() if line.strip().startswith("cycle:")]
+    assert len(cycles) == 1 and "3.lif -> 3.w_rec -> 3.lif" in cycles[0]
+    assert "one step reach its own input at the next" in cycles[0]

@@ -18,6 +18,19 @@ from test_launch import BATCH, TINY, _specs
 ray = pytest.importorskip("ray", reason="optional: the ray extra is not installed "
                           "(pip install -e '.[ray]')")  # fmt: skip
 ROOT = Path(__file__).resolve().parents[1]
+# one Ray instance at a time: under pytest-xdist these tests share one worker (--dist
+# loadgroup), since a second instance started by the other worker would be taken for a leftover
+pytestmark = pytest.mark.xdist_group("ray")
+
+
+def _ray_left(wait: float = 30.0) -> list[str]:
+    """The Ray processes still there after up to ``wait`` seconds: a stopped instance's
+    processes take a moment to exit, longer on a loaded machine (another test's, or a
+    launcher's reaper that waits 15 s before it kills)."""
+    deadline = time.monotonic() + wait
+    while (found := _ray_processes()) and time.monotonic() < deadline:
+        time.sleep(0.5)
+    return found
 
 
 def _ray_processes() -> list[str]:
@@ -36,14 +49,14 @@ def _ray_processes() -> list[str]:
 def test_the_pool_list_runs_as_tune_trials(tmp_path: Path) -> None:
     from snnkart.app.launch_ray import run_on_ray
 
-    assert not _ray_processes(), "a Ray instance is already running"
+    assert not _ray_left(), "a Ray instance is already running"
     results = run_on_ray(_specs(2), tmp_path, cpus=2)
     assert [(r.name, r.status, r.global_step) for r in results] == [
         ("ann-s1", "done", 2 * BATCH), ("snn-s2", "done", 2 * BATCH)]  # fmt: skip
     record = json.loads((tmp_path / "launch.json").read_text())
     assert record["backend"] == "ray" and len(record["runs"]) == 2
     assert 'policy = "snn"' in (tmp_path / "snn-s2" / "config.toml").read_text()
-    assert not _ray_processes(), "Ray processes outlived the launcher"
+    assert not _ray_left(), "Ray processes outlived the launcher"
     # resumable: a finished list is reused without starting Ray's trials again
     again = run_on_ray(_specs(2), tmp_path, cpus=2)
     assert [r.status for r in again] == ["reused", "reused"]
@@ -65,7 +78,7 @@ def test_sweep_stops_weak_trials_early(tmp_path: Path) -> None:
     assert {"ppo.learning_rate": 0.0} in [t["settings"] for t in trials]  # the hopeless trial
     assert sum(t["stopped_early"] for t in trials) >= 1, trials
     assert all(t["iterations"] >= 1 for t in trials) and record["grace_period"] == 1
-    assert not _ray_processes(), "Ray processes outlived the sweep"
+    assert not _ray_left(), "Ray processes outlived the sweep"
 
 
 @pytest.mark.timeout(400)
@@ -76,7 +89,7 @@ def test_ctrl_c_of_a_sweep_saves_the_trials_and_leaves_no_ray_process(
     """Ctrl-C (SIGINT to the terminal's whole process group) or SIGTERM (to the command): the
     sweep exits as interrupted, every trial's run directory holds a checkpoint of a whole
     iteration it recorded, and no Ray process is left."""
-    assert not _ray_processes(), "a Ray instance is already running"
+    assert not _ray_left(), "a Ray instance is already running"
     sets = [arg for kv in TINY for arg in ("--set", kv)]
     sweep = subprocess.Popen(
         [sys.executable, "-m", "snnkart.cli", "sweep", "--param",
@@ -96,7 +109,7 @@ def test_ctrl_c_of_a_sweep_saves_the_trials_and_leaves_no_ray_process(
     _, stderr = sweep.communicate(timeout=150)
     assert sweep.returncode == 128 + signum, stderr[-3000:]
     assert "interrupted" in stderr
-    assert not _ray_processes(), "Ray processes outlived the sweep"
+    assert not _ray_left(), "Ray processes outlived the sweep"
     record = json.loads((tmp_path / "sweep.json").read_text())
     assert record["interrupted"] is True and len(record["trials"]) == 2
     for run_dir, step in _saved_steps(tmp_path).items():
@@ -125,7 +138,7 @@ def _saved_steps(out: Path) -> dict[Path, int]:
 def test_a_study_runs_its_trainings_as_tune_trials(tmp_path: Path) -> None:
     """``snnkart study --ray``: the same runs, trained as Tune trials, then evaluated and
     summarised as on the local pool; no Ray process left."""
-    assert not _ray_processes(), "a Ray instance is already running"
+    assert not _ray_left(), "a Ray instance is already running"
     cfg = tmp_path / "study.toml"
     cfg.write_text(
         'schema = "snnkart/study-config/v1"\ndata = "tuning"\nenvs = ["grid"]\npolicies = ["ann", "snn"]\n'
@@ -143,4 +156,4 @@ def test_a_study_runs_its_trainings_as_tune_trials(tmp_path: Path) -> None:
         ("small_S-grid-ann-s1", 2 * BATCH), ("small_S-grid-snn-s1", 2 * BATCH)]  # fmt: skip
     launch = json.loads((tmp_path / "out" / "runs" / "launch.json").read_text())
     assert launch["backend"] == "ray"
-    assert not _ray_processes(), "Ray processes outlived the study"
+    assert not _ray_left(), "Ray processes outlived the study"

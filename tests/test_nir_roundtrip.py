@@ -1,5 +1,6 @@
-"""Export -> ``nir.read`` -> snntorch's ``import_from_nir``: the imported network acts as the
-trained policy, LIF and CubaLIF alike, once its neurons are reset before each env step
+"""Export -> ``nir.read`` -> snntorch's ``import_from_nir``: the imported network, given the
+env's raw observations (the graph's first node normalises them: contract/obs_node.py), acts as
+the trained policy does on normalised ones, LIF and CubaLIF alike, once its neurons are reset before each env step
 (snntorch's importer builds ``init_hidden`` neurons that keep their state across calls and
 ignore the state argument)."""
 
@@ -20,6 +21,7 @@ from snntorch.import_nir import import_from_nir
 from tiny_runs import train_tiny
 
 from snnkart.backends.reference import NIRReference
+from snnkart.contract.obs_node import raw_clip
 from snnkart.eval.closed_loop import make_policy_env
 from snnkart.export.nir_export import export_nir
 from snnkart.rl.trained import TorchPredictor, load_run
@@ -48,20 +50,21 @@ def test_snntorch_imports_the_export_and_acts_as_the_trained_policy(
     path, _ = export_nir(run, tmp_path / "policy.nir")
     net = import_from_nir(nir.read(path))
     reference, policy = NIRReference(path, "float32"), TorchPredictor(run)
-    T = reference.manifest.num_steps
+    m = reference.manifest
+    T = m.num_steps
     env = make_policy_env(reference.manifest, None, None)
     same = steps = 0
     actions, carried = set(), 0
     try:
         obs, _ = env.reset(seed=3)
         while steps < 120:
-            z = reference.normalise(obs)
-            logits = _imported_logits(net, z, T, reset=True)
+            raw = raw_clip(obs, m.obs_mean, m.obs_std, m.obs_clip)  # the manifest's clip
+            logits = _imported_logits(net, raw, T, reset=True)
             np.testing.assert_allclose(logits, reference.readout(obs), atol=1e-5)
             action = policy.predict(obs)
             same += int(np.argmax(logits)) == action
             actions.add(action)
-            again = _imported_logits(net, z, T, reset=False)  # the state carried over
+            again = _imported_logits(net, raw, T, reset=False)  # the state carried over
             carried += not np.allclose(again, logits, atol=1e-5)
             obs, _, terminated, truncated, _ = env.step(action)
             steps += 1

@@ -47,7 +47,7 @@ def test_open_run_gives_what_resume_and_load_need(run: tuple[Path, Trainer]) -> 
     opened = open_run(run_dir)
     assert opened.checkpoint == run_dir / "checkpoint.pt"
     assert opened.config == trainer.cfg and opened.track.name == trainer.track.name
-    assert opened.env_spec == env_spec(trainer.env0) == opened.meta["env_spec"]
+    assert opened.env_spec == env_spec(trainer.karts[0]) == opened.meta["env_spec"]
     weights = trainer.policy.state_dict()
     for name, value in opened.policy.state_dict().items():
         assert torch.equal(value, weights[name]), name

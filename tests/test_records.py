@@ -136,7 +136,7 @@ def test_a_file_of_another_kind_or_a_newer_version_is_refused(cls: type[Record],
                   f"not a {kind.name} record (schema 'snnkart/other/v1', expected {kind.tag!r})"),
         "untagged": ({k: v for k, v in data.items() if k != "schema"},
                      f"not a {kind.name} record (schema None"),
-        "unknown key": ({**data, "extra": 1}, f"extra is an unknown key in a {kind.tag} record"),
+        "unknown key": ({**data, "extra": 1}, f"extra is an unknown key in a {data['schema']} record"),
         "wrong type": (_wrong_type(cls, data), f"{WRONG_TYPE[cls][0]}.{WRONG_TYPE[cls][1]} is "
                        f"{WRONG_TYPE[cls][2]!r}, not "),
     }  # fmt: skip

@@ -28,8 +28,8 @@ from snnkart.rl.kinds.base import PolicySpace
 from snnkart.rl.policies import SDNNPolicy
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.rollout import IterationStats
-from snnkart.rl.sdnn import lava_weights
-from snnkart.rl.sdnn_config import SDNNConfig
+from snnkart.rl.sigma_delta import lava_weights
+from snnkart.rl.sigma_delta_config import SDNNConfig
 
 CLIP = 10.0
 

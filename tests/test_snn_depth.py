@@ -67,7 +67,7 @@ def test_export_writes_a_chain_of_that_depth(
     n = len(hidden)
     lifs = [str(2 * i + 1) for i in range(n)]
     affines = [str(2 * i) for i in range(n + 1)]
-    assert set(graph.nodes) == {"input", "output", *lifs, *affines}
+    assert set(graph.nodes) == {"input", "normalise", "output", *lifs, *affines}
     manifest = Manifest.read(manifest_path(nir_path))
     cuba = depth.startswith("cuba")
     for name, size, spec in zip(lifs, hidden, manifest.layers, strict=True):

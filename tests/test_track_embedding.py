@@ -79,7 +79,7 @@ def test_checkpoint_and_manifest_embed_the_track(moved: dict[str, Path]) -> None
     assert meta["track"]["given"] == "tracks/ring.toml"  # the path as the user gave it
     assert parse_track(meta["track"]["toml"]).to_toml() == _ring_toml()
     manifest = json.loads(manifest_path(moved["nir"]).read_text())
-    assert manifest["schema"] == "snnkart/manifest/v3"
+    assert manifest["schema"] == "snnkart/manifest/v4"
     assert manifest["track"] == meta["track"]
     assert manifest["env"]["track_sha256"] == meta["track"]["sha256"]
     assert manifest["env"]["env_config"] == meta["env_spec"]["env_config"]

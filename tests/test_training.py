@@ -592,7 +592,7 @@ def test_eval_cli_writes_json(tmp_path: Path, trained: dict[str, tuple[Path, Tra
     assert result.exit_code == 0, result.output
     assert "2 episodes" in result.output and str(out) in result.output
     record = json.loads(out.read_text())
-    assert record["schema"] == EVAL_SCHEMA == "snnkart/eval/v1"
+    assert record["schema"] == EVAL_SCHEMA == "snnkart/eval/v2"
     assert record["summary"]["episodes"] == 2
     assert len(record["episodes"]) == 2
     assert record["policy"] == "snn" and record["env"] == "grid"
@@ -607,7 +607,7 @@ def test_eval_cli_default_output_is_in_the_run_dir(
     result = CliRunner().invoke(app, ["eval", str(run_dir), "--episodes", "2"])
     assert result.exit_code == 0, result.output
     record = json.loads((run_dir / "eval.json").read_text())
-    assert record["schema"] == "snnkart/eval/v1"
+    assert record["schema"] == "snnkart/eval/v2"
     assert record["summary"]["episodes"] == 2
 
 
@@ -829,7 +829,7 @@ def test_a_run_made_before_a_default_changed_evaluates_and_resumes_in_its_own_en
         env.close()
     resumed = Trainer(load_config(), run, resume=True, total_steps=512)
     try:
-        assert resumed.env0.config.reward.stall == 0.0
+        assert resumed.karts[0].config.reward.stall == 0.0
         resumed.train()
     finally:
         resumed.close()

@@ -185,7 +185,15 @@ def test_break_even_in_width_against_a_hand_computation() -> None:
 
 
 def _terms(rows: list[dict[str, Any]]) -> list[Term]:
-    return [Term(**{k: v for k, v in r.items() if k != "energy_pj"}) for r in rows]
+    """The report's term records as terms again (each price as the figure it was priced at)."""
+    return [
+        Term(r["part"], r["what"], r["count"], r["profile"], r["op"], _as_priced(r)) for r in rows
+    ]
+
+
+def _as_priced(row: dict[str, Any]) -> Price:
+    value = row["price_pj"]
+    return Price(value, value, value, "pJ", "as priced", row["source"])
 
 
 def test_the_report_carries_each_pairs_interval_and_break_even() -> None:

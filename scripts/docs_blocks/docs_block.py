@@ -12,14 +12,14 @@ from typing import Any
 from snnkart.errors import ReportError
 from snnkart.report.document import md_table
 from snnkart.report.first_screen import pair_rows, sd_sentence, sentence
-from snnkart.report.sd_document import chip_rows
+from snnkart.report.sigma_delta_document import chip_rows
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-READS = ("snnkart/report/v2", "snnkart/report/v3")
+READS = ("snnkart/report/v2", "snnkart/report/v3", "snnkart/report/v4")
 """The report.json versions this code reads: v3, and v2 (a LIF report, as v3 writes it)."""
 BEGIN = "<!-- generated from {source} by scripts/render_docs.py: do not edit -->"
 END = "<!-- end of generated block -->"

@@ -75,8 +75,13 @@ def train(
     from snnkart.rl.config import load_config
     from snnkart.rl.ppo import Trainer
 
-    overrides = {"env": env, "policy": policy, "track": track, "total_steps": total_steps,
-                 "seed": seed}  # fmt: skip
+    overrides = {
+        "env": env,
+        "policy": policy,
+        "track": track,
+        "total_steps": total_steps,
+        "seed": seed,
+    }
     cfg = load_config(config, overrides, list(sets))
     if not resume:
         load_track(cfg.track)
@@ -85,8 +90,11 @@ def train(
         progress = trainer.train(on_iteration)
     finally:
         trainer.close()
-    return {**progress.state(), "interrupted": trainer.interrupted,
-            "stopped_early": trainer.stopped_early}  # fmt: skip
+    return {
+        **progress.state(),
+        "interrupted": trainer.interrupted,
+        "stopped_early": trainer.stopped_early,
+    }
 
 
 def evaluate(

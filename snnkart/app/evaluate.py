@@ -13,7 +13,7 @@ from snnkart import faults
 from snnkart.app.pipeline import refuse_main_job_folder
 from snnkart.app.reporter import Reporter
 from snnkart.contract.deploy_record import DeployRecord
-from snnkart.contract.eval_record import EVAL_SCHEMA, EvalRecord
+from snnkart.contract.eval_record import EVAL_SCHEMA, EvalRecord, EvalSummary, TrackFields
 from snnkart.envs.constants import RENDER_FPS
 from snnkart.envs.tracks import track_label
 from snnkart.errors import UsageError
@@ -42,7 +42,6 @@ def run_eval(
     ``latest`` (None), ``best``, an env step or a file
     (:func:`snnkart.rl.run_dir.checkpoint_path`). With ``video``, the first ``video_episodes``
     episodes are filmed (all are scored)."""
-    from snnkart.eval.episodes import EvalSummary
     from snnkart.rl.trained import TorchPredictor, load_run
 
     refuse_main_job_folder(run_dir, exported=False)
@@ -50,13 +49,15 @@ def run_eval(
     run = load_run(run_dir, checkpoint)
     choice = _track_choice(run, track)
     mode = "human" if render else ("rgb_array" if video is not None else None)
-    env = run.config.make_env(render_mode=mode, track=choice.track)
+    env = run.config.make_env(render_mode=mode, track=None if choice is None else choice.track)
+    _check_render(env, mode, run.config.env)
     predictor: Any = TorchPredictor(run, seed=seed)
-    if mode is not None and run.policy.layer_sizes():  # a spiking actor: show its activity
-        predictor = _ShowingActivity(predictor, env.unwrapped)
+    if mode is not None and choice is not None and run.policy.layer_sizes():
+        predictor = _ShowingActivity(predictor, env.unwrapped)  # a spiking actor's activity
     filmed = min(episodes, video_episodes) if video is not None else 0
     results = _episodes(env, predictor, range(seed, seed + episodes), video, filmed, reporter)
-    summary = EvalSummary.of(results)
+    threshold = run.meta["env_spec"].get("reward_threshold") if choice is None else None
+    summary = EvalSummary.of(results, threshold)
     path = out or run_dir / "eval.json"
     record = EvalRecord(
         schema=EVAL_SCHEMA,
@@ -65,17 +66,18 @@ def run_eval(
         global_step=run.meta.get("global_step"),
         policy=run.config.policy,
         env=run.config.env,
-        **choice.record(),
+        **vars(TrackFields.none() if choice is None else choice.record()),
         first_seed=seed,
         summary=summary,
         episodes=results,
     )
     record.write(path)
+    where = run.config.env if choice is None else f"{run.config.env}/{choice.label}"
     reporter.message(
-        f"{run.config.policy.upper()} {run.config.env}/{choice.label} "
-        f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: {_describe(summary)}"
+        f"{run.config.policy.upper()} {where} "
+        f"(step {run.meta.get('global_step', 0):,}), {episodes} episodes: {describe(summary)}"
     )
-    if choice.override:
+    if choice is not None and choice.override:
         reporter.message(
             f"note: track {choice.label} is not the track the policy was trained on "
             f"({track_label(choice.trained['name'], choice.trained['given'])})"
@@ -112,7 +114,8 @@ def _episodes(
         task = stack.enter_context(reporter.progress(label, len(seeds), steps))
         on_step, on_episode = None, lambda r: task.advance()
         if video is not None:
-            writer = stack.enter_context(video_writer(video, fps=RENDER_FPS / 2))
+            fps = env.metadata.get("render_fps") or RENDER_FPS  # every second step is filmed
+            writer = stack.enter_context(video_writer(video, fps=fps / 2))
             film = Film(env.unwrapped, writer, len(seeds), seeds.start, filmed, on_frame=task.step)
             on_step = film.on_step
 
@@ -139,12 +142,31 @@ class _ShowingActivity:
         return action
 
 
+def _check_render(env: Any, mode: str | None, name: str) -> None:
+    """Refuse ``--render``/``--video`` on an env that cannot draw itself that way."""
+    modes = env.metadata.get("render_modes", [])
+    if mode is not None and mode not in modes:
+        env.close()
+        flag = "--render" if mode == "human" else "--video"
+        raise UsageError(
+            f"{flag} needs the env to render {mode!r}; {name!r} renders "
+            f"{', '.join(map(repr, modes)) or 'nothing'}: leave {flag} out"
+        )
+
+
 def _track_choice(run: Any, track: str | None) -> Any:
-    """The track to evaluate on: ``--track``, else the one the run was trained on."""
+    """The track to evaluate on: ``--track``, else the one the run was trained on; None for
+    any gymnasium env (no track; ``--track`` is refused)."""
     from snnkart.envs.tracks import embed_track, load_track
     from snnkart.eval.policy_env import TrackChoice
 
-    assert run.track is not None
+    if run.track is None:
+        if track is not None:
+            raise UsageError(
+                f"--track is for the kart envs; {run.config.env!r} is a gymnasium env: leave "
+                "--track out"
+            )
+        return None
     trained = embed_track(run.track, run.config.track)
     del trained["toml"]
     if track is not None:
@@ -152,7 +174,13 @@ def _track_choice(run: Any, track: str | None) -> Any:
     return TrackChoice(run.track, run.config.track, "run", trained)
 
 
-def _describe(summary: Any) -> str:
+def describe(summary: EvalSummary) -> str:
+    """An evaluation's summary in one line: a kart env's laps and crashes, any other env's
+    return, NeuroBench's risk and whether it is solved."""
+    from snnkart.eval.episodes import describe_returns
+
+    if summary.success_rate is None:
+        return describe_returns(summary)
     return (
         f"success {summary.success_rate:.0%}, return {summary.mean_return:.2f} "
         f"+- {summary.std_return:.2f}, lap time {_fmt(summary.mean_lap_time)} s, "

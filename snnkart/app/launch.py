@@ -85,12 +85,18 @@ def result_of(
         meta = json.loads((run_dir / "checkpoint.json").read_text())
     first = meta.get("first_finish_step", -1)
     return RunResult(
-        name=spec.name, run_dir=str(run_dir), status=status,
-        global_step=int(meta.get("global_step", 0)), total_steps=spec.config.total_steps,
+        name=spec.name,
+        run_dir=str(run_dir),
+        status=status,
+        global_step=int(meta.get("global_step", 0)),
+        total_steps=spec.config.total_steps,
         first_finish_step=None if first is None or first < 0 else int(first),
-        finishes=int(meta.get("finishes", 0)), episodes=int(meta.get("episodes", 0)),
-        seconds=seconds, error=error, stopped_early=bool(meta.get("stopped_early", False)),
-    )  # fmt: skip
+        finishes=int(meta.get("finishes", 0)),
+        episodes=int(meta.get("episodes", 0)),
+        seconds=seconds,
+        error=error,
+        stopped_early=bool(meta.get("stopped_early", False)),
+    )
 
 
 class LocalPool:

@@ -91,9 +91,14 @@ def _train_trial(config: TrialConfig) -> None:
         ret = record.get("charts/episodic_return")
         if ret is not None:
             last["value"] = float(ret)
-        tune.report({METRIC: last["value"], "global_step": record["global_step"],
-                     "finishes": record["charts/cumulative_finishes"],
-                     "run_dir": str(run_dir)})  # fmt: skip
+        tune.report(
+            {
+                METRIC: last["value"],
+                "global_step": record["global_step"],
+                "finishes": record["charts/cumulative_finishes"],
+                "run_dir": str(run_dir),
+            }
+        )
 
     # Tune stops a trial (ASHA, Ctrl-C) while it waits in ``tune.report``, then ends the worker:
     # the checkpoint written just before each report is the run's last whole iteration.
@@ -144,8 +149,13 @@ def _ray(address: str | None, cpus: int | None) -> Iterator[_Stop]:
 
     before = set(_ray_pids())
     with _Stop() as stop:
-        ray.init(address=address, num_cpus=None if address else cpus, include_dashboard=False,
-                 log_to_driver=False, configure_logging=False)  # fmt: skip
+        ray.init(
+            address=address,
+            num_cpus=None if address else cpus,
+            include_dashboard=False,
+            log_to_driver=False,
+            configure_logging=False,
+        )
         stop.arm()  # again: ray.init installs its own SIGTERM handler
         try:
             yield stop
@@ -164,8 +174,12 @@ def _ray_pids() -> list[int]:
             state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
         except (OSError, IndexError):
             continue
-        if state != "Z" and (b"raylet" in cmd or b"gcs_server" in cmd or cmd.startswith(b"ray::")
-                             or b"default_worker.py" in cmd):  # fmt: skip
+        if state != "Z" and (
+            b"raylet" in cmd
+            or b"gcs_server" in cmd
+            or cmd.startswith(b"ray::")
+            or b"default_worker.py" in cmd
+        ):
             pids.append(int(pid))
     return pids
 
@@ -181,8 +195,9 @@ def _reap_local_ray(before: set[int], grace: float = 15.0) -> None:
             os.kill(pid, signal.SIGKILL)
 
 
-def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
-               cpus: int | None = None) -> list[RunResult]:  # fmt: skip
+def run_on_ray(
+    specs: list[RunSpec], out: Path, address: str | None = None, cpus: int | None = None
+) -> list[RunResult]:
     """The local pool's list as Tune trials (one CPU each); the same records in
     ``out/launch.json``."""
     from ray import tune
@@ -191,9 +206,18 @@ def run_on_ray(specs: list[RunSpec], out: Path, address: str | None = None,
     todo = [s for s in specs if not complete(out / s.name, s)]
     signum = None
     if todo:
-        space = {"spec": tune.grid_search([
-            {"name": s.name, "train": s.config.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out)} for s in todo
-        ])}  # fmt: skip
+        space = {
+            "spec": tune.grid_search(
+                [
+                    {
+                        "name": s.name,
+                        "train": s.config.model_dump(mode="json", by_alias=True, exclude_none=True),
+                        "out": str(out),
+                    }
+                    for s in todo
+                ]
+            )
+        }
         with _ray(address, cpus) as stop:
             tuner = tune.Tuner(
                 tune.with_resources(lambda c: _train_trial(c["spec"]), {"cpu": 1}),
@@ -237,8 +261,10 @@ def parse_param(text: str) -> tuple[str, Any]:
             low, high = (float(x) for x in args.split(":"))
             return key, (tune.uniform if kind == "uniform" else tune.loguniform)(low, high)
         if sep and kind == "choice":
-            values = [float(x) if x.replace(".", "", 1).replace("e-", "").isdigit() else x
-                      for x in args.split(",")]  # fmt: skip
+            values = [
+                float(x) if x.replace(".", "", 1).replace("e-", "").isdigit() else x
+                for x in args.split(",")
+            ]
             return key, tune.choice(values)
     except ValueError:
         pass
@@ -248,9 +274,16 @@ def parse_param(text: str) -> tuple[str, Any]:
     )
 
 
-def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
-              points: Sequence[Mapping[str, object]] | None = None, grace: int = 1,
-              address: str | None = None, cpus: int | None = None) -> dict[str, object]:  # fmt: skip
+def run_sweep(
+    base: TrainConfig,
+    params: list[str],
+    out: Path,
+    samples: int,
+    points: Sequence[Mapping[str, object]] | None = None,
+    grace: int = 1,
+    address: str | None = None,
+    cpus: int | None = None,
+) -> dict[str, object]:
     """Search ``params`` with Optuna, stop weak trials with ASHA; write ``out/sweep.json``."""
     from ray import tune
     from ray.tune.schedulers import ASHAScheduler
@@ -266,34 +299,68 @@ def run_sweep(base: TrainConfig, params: list[str], out: Path, samples: int,
     with _ray(address, cpus) as stop:
         tuner = tune.Tuner(
             tune.with_resources(_train_trial, {"cpu": 1}),
-            param_space={"train": base.model_dump(mode="json", by_alias=True, exclude_none=True), "out": str(out), "search": space},
+            param_space={
+                "train": base.model_dump(mode="json", by_alias=True, exclude_none=True),
+                "out": str(out),
+                "search": space,
+            },
             tune_config=tune.TuneConfig(
-                metric=METRIC, mode="max", num_samples=samples,
-                search_alg=OptunaSearch(seed=base.seed, points_to_evaluate=[
-                    {f"search/{k}": v for k, v in p.items()} for p in points or []]),
-                scheduler=ASHAScheduler(time_attr="training_iteration", grace_period=grace,
-                                        max_t=iterations, reduction_factor=2),
+                metric=METRIC,
+                mode="max",
+                num_samples=samples,
+                search_alg=OptunaSearch(
+                    seed=base.seed,
+                    points_to_evaluate=[
+                        {f"search/{k}": v for k, v in p.items()} for p in points or []
+                    ],
+                ),
+                scheduler=ASHAScheduler(
+                    time_attr="training_iteration",
+                    grace_period=grace,
+                    max_t=iterations,
+                    reduction_factor=2,
+                ),
             ),
             run_config=tune.RunConfig(storage_path=str(out / "ray"), name="sweep", verbose=0),
-        )  # fmt: skip
+        )
         grid = tuner.fit()
     stopped = stop.signum is not None
-    trials: list[TrialRecord] = []
-    for r in (grid[i] for i in range(len(grid))):
-        ran = int(r.metrics.get("training_iteration", 0)) if r.metrics else 0
-        trials.append({
-            "settings": (r.config or {}).get("search"), "iterations": ran, "max_iterations": iterations,
-            # under Ctrl-C, Tune stops every running trial: whether ASHA had is then unknown
-            "stopped_early": None if stopped else ran < iterations and r.error is None,
-            METRIC: (r.metrics or {}).get(METRIC), "error": None if r.error is None else str(r.error),
-            "run_dir": (r.metrics or {}).get("run_dir"),
-        })  # fmt: skip
-    scored = [t for t in trials if isinstance(t[METRIC], float)]
-    best = max(scored, key=lambda t: float(t[METRIC]), default=None)  # type: ignore[arg-type]
-    record: SweepRecord = {"metric": METRIC, "mode": "max", "grace_period": grace, "samples": samples,
-              "interrupted": bool(stopped),
-              "base": base.model_dump(mode="json", by_alias=True, exclude_none=True), "trials": trials, "best": best}  # fmt: skip
+    trials = [_trial_record(grid[i], iterations, stopped) for i in range(len(grid))]
+    record = _sweep_record(base, grace, samples, stopped, trials)
     write_json(out / "sweep.json", record)
     if stop.signum is not None:
         raise Interrupted(stop.signum)
     return dict(record)  # a plain dict: the command line reads it as JSON
+
+
+def _trial_record(result: Any, iterations: int, stopped: bool) -> TrialRecord:
+    """One trial of Tune's results (a ``ray.tune.Result``) as ``sweep.json`` lists it."""
+    ran = int(result.metrics.get("training_iteration", 0)) if result.metrics else 0
+    return {
+        "settings": (result.config or {}).get("search"),
+        "iterations": ran,
+        "max_iterations": iterations,
+        # under Ctrl-C, Tune stops every running trial: whether ASHA had is then unknown
+        "stopped_early": None if stopped else ran < iterations and result.error is None,
+        METRIC: (result.metrics or {}).get(METRIC),
+        "error": None if result.error is None else str(result.error),
+        "run_dir": (result.metrics or {}).get("run_dir"),
+    }
+
+
+def _sweep_record(
+    base: TrainConfig, grace: int, samples: int, stopped: bool, trials: list[TrialRecord]
+) -> SweepRecord:
+    """``sweep.json``'s record: the search's settings, every trial and the best scored one."""
+    scored = [t for t in trials if isinstance(t[METRIC], float)]
+    best = max(scored, key=lambda t: float(t[METRIC]), default=None)  # type: ignore[arg-type]
+    return {
+        "metric": METRIC,
+        "mode": "max",
+        "grace_period": grace,
+        "samples": samples,
+        "interrupted": bool(stopped),
+        "base": base.model_dump(mode="json", by_alias=True, exclude_none=True),
+        "trials": trials,
+        "best": best,
+    }

@@ -55,8 +55,17 @@ def main_job_files() -> frozenset[str]:
     from snnkart.contract.manifest import manifest_path
 
     deploys = {f"deploy-lava-sim-{p}" for p in PRECISIONS}
-    return frozenset({SNN_RUN, ANN_RUN, POLICY_FILE, manifest_path(Path(POLICY_FILE)).name,
-                      QUANT_FILE, REPORT_DIR, *deploys})  # fmt: skip
+    return frozenset(
+        {
+            SNN_RUN,
+            ANN_RUN,
+            POLICY_FILE,
+            manifest_path(Path(POLICY_FILE)).name,
+            QUANT_FILE,
+            REPORT_DIR,
+            *deploys,
+        }
+    )
 
 
 def refuse_main_job_folder(path: Path, exported: bool) -> None:
@@ -142,10 +151,14 @@ def _train(policy: str, run_dir: Path, steps: int, reporter: Reporter, stage: st
     extra = DEMO_SNN_SETTINGS if spiking else {}
     cfg = load_config(
         overrides={
-            "env": DEMO_ENV, "track": DEMO_TRACK, "policy": policy,
-            "total_steps": steps, "seed": DEMO_SEED, **extra,
+            "env": DEMO_ENV,
+            "track": DEMO_TRACK,
+            "policy": policy,
+            "total_steps": steps,
+            "seed": DEMO_SEED,
+            **extra,
         }
-    )  # fmt: skip
+    )
     return run_training(cfg, run_dir, reporter, resume=False)
 
 
@@ -184,7 +197,7 @@ def _quantisation(
             summaries[label] = EvalSummary.of(results)
     finally:
         env.close()
-    torch_rate, fixed_rate = summaries["torch"].success_rate, summaries["fixed point"].success_rate
+    torch_rate, fixed_rate = summaries["torch"].laps, summaries["fixed point"].laps
     retained = fixed_rate / torch_rate if torch_rate > 0 else float("nan")
     reporter.message(
         f"      success: torch {torch_rate:.0%}, fixed point {fixed_rate:.0%} "
@@ -211,9 +224,13 @@ def _deploy(
     records = {}
     for precision, episodes in zip(PRECISIONS, (lava_episodes, 2), strict=True):
         request = DeployRequest(
-            nir_path, "lava-sim", precision, episodes, EVAL_SEED,
+            nir_path,
+            "lava-sim",
+            precision,
+            episodes,
+            EVAL_SEED,
             out=out / f"deploy-lava-sim-{precision}",
-        )  # fmt: skip
+        )
         records[precision] = run_deploy_reported(request, reporter)
     return records
 

@@ -8,8 +8,9 @@ from pathlib import Path
 from snnkart.app.reporter import Reporter
 
 
-def run_plot_raster(nir_file: Path, step: int, seed: int, track: str | None, out: Path,
-                    reporter: Reporter) -> Path:  # fmt: skip
+def run_plot_raster(
+    nir_file: Path, step: int, seed: int, track: str | None, out: Path, reporter: Reporter
+) -> Path:
     from snnkart.backends.loading import load_chain
     from snnkart.eval.trace import trace_step
     from snnkart.io import write_bytes
@@ -18,10 +19,13 @@ def run_plot_raster(nir_file: Path, step: int, seed: int, track: str | None, out
     load_chain(nir_file)  # a clear error for a missing or bad file
     trace = trace_step(nir_file, step, seed, track)
     png = plots.raster(
-        trace.raster, trace.membranes, trace.sizes, trace.thresholds,
+        trace.raster,
+        trace.membranes,
+        trace.sizes,
+        trace.thresholds,
         f"{nir_file.name}: env step {step} of the episode of seed {seed} "
         f"(float32 reference; action {trace.action})",
-    )  # fmt: skip
+    )
     write_bytes(out, png)
     spikes = trace.raster.sum(0)
     per_layer = []

@@ -92,14 +92,16 @@ def spawn(job: Job) -> tuple[subprocess.Popen[bytes], IO[bytes] | None]:
     cmd = [sys.executable, "-m", "snnkart.app.worker", request_json(job.request)]
     if job.log is not None:
         with job.log.open("ab") as log:
-            proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env,
-                                    start_new_session=True)  # fmt: skip
+            proc = subprocess.Popen(
+                cmd, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True
+            )
         return proc, None
     # stderr to a file, not a pipe, which a chatty job could fill and block on
     err: IO[bytes] = tempfile.TemporaryFile()
     try:
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, env=env,
-                                start_new_session=True)  # fmt: skip
+        proc = subprocess.Popen(
+            cmd, stdout=subprocess.DEVNULL, stderr=err, env=env, start_new_session=True
+        )
     except BaseException:
         err.close()
         raise

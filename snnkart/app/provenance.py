@@ -14,8 +14,17 @@ SOURCE = Path(__file__).resolve().parents[2]  # the checkout snnkart runs from
 PACKAGE = SOURCE / "snnkart"
 TRAINING_CODE = ("rl", "envs")
 """The packages a run's training depends on (its study key)."""
-EVALUATION_CODE = ("app", "backends", "backends/lava_procs", "contract", "energy", "envs", "eval",
-                   "export", "rl")  # fmt: skip
+EVALUATION_CODE = (
+    "app",
+    "backends",
+    "backends/lava_procs",
+    "contract",
+    "energy",
+    "envs",
+    "eval",
+    "export",
+    "rl",
+)
 """The packages an evaluation's numbers depend on (everything but the report, the command
 line and ROS)."""
 
@@ -35,10 +44,19 @@ def git_commit(cwd: Path = SOURCE) -> str:
     """The short commit of the checkout, ``-dirty`` if tracked files changed; ``unknown``
     outside a git checkout (an installed package)."""
     try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, check=True, cwd=cwd).stdout.strip()  # fmt: skip
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, cwd=cwd).stdout.strip()  # fmt: skip
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=cwd,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            cwd=cwd,
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
     return head + ("-dirty" if dirty else "")

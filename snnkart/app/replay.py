@@ -43,8 +43,11 @@ def run_replay(
     _show(env, shown, out, every)
     if out is not None:
         reporter.message(f"replay written to {out}")
-    return {"episodes": len(recorded.ghosts), "unfinished": recorded.unfinished,
-            "begun_before": recorded.begun_before}  # fmt: skip
+    return {
+        "episodes": len(recorded.ghosts),
+        "unfinished": recorded.unfinished,
+        "begun_before": recorded.begun_before,
+    }
 
 
 def _show(env: Any, shown: Iterator[GhostFrame], out: Path | None, every: int) -> None:
@@ -73,8 +76,14 @@ def _show(env: Any, shown: Iterator[GhostFrame], out: Path | None, every: int) -
         env.close()
 
 
-def run_compare(run_dirs: list[Path], out: Path | None, seed: int, track: str | None,
-                every: int, reporter: Reporter) -> list[dict[str, object]]:  # fmt: skip
+def run_compare(
+    run_dirs: list[Path],
+    out: Path | None,
+    seed: int,
+    track: str | None,
+    every: int,
+    reporter: Reporter,
+) -> list[dict[str, object]]:
     """Up to four trained policies drive one seeded episode each on one track (the first
     run's, or ``track``), drawn together in distinct colours with a legend: in a window, or
     to a GIF/MP4. Returns how each episode ended."""
@@ -91,8 +100,10 @@ def run_compare(run_dirs: list[Path], out: Path | None, seed: int, track: str | 
     _show(env, race_frames(racers, every), out, every)
     if out is not None:
         reporter.message(f"comparison of {len(racers)} runs written to {out}")
-    return [{"run": str(d), "label": r.label, "outcome": r.outcome}
-            for d, r in zip(run_dirs, racers, strict=True)]  # fmt: skip
+    return [
+        {"run": str(d), "label": r.label, "outcome": r.outcome}
+        for d, r in zip(run_dirs, racers, strict=True)
+    ]
 
 
 def _recorder(path: list[tuple[float, float]]) -> Any:
@@ -123,12 +134,20 @@ def _race(run_dirs: list[Path], seed: int, track: str | None) -> tuple[list[Any]
         env = run.config.make_env(track=shared)
         try:
             path = [_reset_pose(env, seed)]  # positions[t]: the pose after t steps
-            (result,) = run_episodes(env, TorchPredictor(run, seed=seed), 1, seed,
-                                     on_step=_recorder(path))  # fmt: skip
+            (result,) = run_episodes(
+                env, TorchPredictor(run, seed=seed), 1, seed, on_step=_recorder(path)
+            )
         finally:
             env.close()
-        outcome = (f"finished {result.lap_time:.2f} s" if result.finished else "crashed"
-                   if result.crashed else "stood still" if result.stood_still else "time limit")  # fmt: skip
+        outcome = (
+            f"finished {result.lap_time:.2f} s"
+            if result.finished
+            else "crashed"
+            if result.crashed
+            else "stood still"
+            if result.stood_still
+            else "time limit"
+        )
         kind = f"{run.config.policy.upper()} {run.config.env}"
         racers.append(Racer(Path(run_dir).name, kind, np.asarray(path, dtype=np.float32), outcome))
     return racers, runs[0].config.make_env(track=shared).unwrapped

@@ -11,7 +11,7 @@ from snnkart.contract.records import Reading, RecordError, from_data
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import ann_terms, terms, total
 from snnkart.energy.profiles import Profile
-from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sigma_delta_counts import SigmaDeltaCounts
 from snnkart.errors import ReportError
 from snnkart.report.study_record import STUDY, RunRecord, StudyRecord
 
@@ -49,14 +49,24 @@ def _point(run: RunRecord, label: str, chip: Profile, host: Profile) -> dict[str
     kind = {"kind": label}
     if run.sigma_delta_counts is not None:
         sd = SigmaDeltaCounts.from_dict(run.sigma_delta_counts)
-        return {**base, "num_steps": 1, "sizes": list(sd.sizes),
-                "success_rate": run.eval_success_rate,
-                "energy_pj": total(terms(sd, chip, host)), **kind}  # fmt: skip
+        return {
+            **base,
+            "num_steps": 1,
+            "sizes": list(sd.sizes),
+            "success_rate": run.eval_success_rate,
+            "energy_pj": total(terms(sd, chip, host)),
+            **kind,
+        }
     counts = run.eval_counts_per_step
     assert counts is not None
-    return {**base, "num_steps": counts.num_steps, "sizes": counts.sizes,
-            "success_rate": run.eval_success_rate,
-            "energy_pj": total(terms(SnnCounts.of_sweep(counts), chip, host)), **kind}  # fmt: skip
+    return {
+        **base,
+        "num_steps": counts.num_steps,
+        "sizes": counts.sizes,
+        "success_rate": run.eval_success_rate,
+        "energy_pj": total(terms(SnnCounts.of_sweep(counts), chip, host)),
+        **kind,
+    }
 
 
 def _ann_shape(runs: list[RunRecord]) -> tuple[str, AnnCounts]:
@@ -85,8 +95,11 @@ def sweep_section(
             f"--sweep {path}: written by an older snnkart (no counts per env step); run "
             "`snnkart study` with its config again (runs and evaluations are reused)"
         )
-    runs = [r for r in record.runs
-            if r.eval_counts_per_step is not None or r.sigma_delta_counts is not None]  # fmt: skip
+    runs = [
+        r
+        for r in record.runs
+        if r.eval_counts_per_step is not None or r.sigma_delta_counts is not None
+    ]
     if not runs:
         raise ReportError(
             f"--sweep {path}: no run of this study has counts (SNNs evaluated on the reference); "
@@ -98,6 +111,12 @@ def sweep_section(
     ann_pj = {f"{shape} on {d.name}": total(ann_terms(ann, d)) for d in digital}
     envs = sorted({r.env for r in runs})
     commit = (record.machine or {}).get("commit")
-    return {"file": str(path), "env": ", ".join(envs), "commit": commit,
-            "profile": chip.name, "host_profile": host.name, "points": points,
-            "ann_64_64_pj": ann_pj}  # fmt: skip
+    return {
+        "file": str(path),
+        "env": ", ".join(envs),
+        "commit": commit,
+        "profile": chip.name,
+        "host_profile": host.name,
+        "points": points,
+        "ann_64_64_pj": ann_pj,
+    }

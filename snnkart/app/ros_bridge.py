@@ -21,9 +21,15 @@ def _check_origin(odom_origin: str) -> None:
 
 
 def run_sim(
-    track: str | None, seed: int, lock_step: bool, out: Path | None, timeout: float,
-    max_steps: int | None, odom_origin: str = "track", policy: Path | None = None,
-) -> dict[str, Any]:  # fmt: skip
+    track: str | None,
+    seed: int,
+    lock_step: bool,
+    out: Path | None,
+    timeout: float,
+    max_steps: int | None,
+    odom_origin: str = "track",
+    policy: Path | None = None,
+) -> dict[str, Any]:
     """Play Gazebo's part for one episode; with ``policy`` (what ``ros drive`` runs) in the env
     that policy was trained for, its track and env config (:func:`sim_env`)."""
     from snnkart.ros.rospy_import import init_node
@@ -80,7 +86,8 @@ def _policy_env(policy: Path) -> tuple[Any, Any]:
         from snnkart.eval.policy_env import make_policy_env, resolve_track
 
         manifest = Manifest.read(manifest_path(policy))
-        trained = resolve_track(manifest, None).track
+        choice = resolve_track(manifest, None)
+        trained = None if choice is None else choice.track
         env = make_policy_env(manifest, None, trained)
     else:
         from snnkart.rl.open_run import open_run

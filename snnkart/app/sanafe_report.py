@@ -33,11 +33,11 @@ from snnkart.backends.network import ChainNetwork
 from snnkart.backends.quantize import FixedPointNetwork
 from snnkart.contract.deploy_inputs import DeployInputs, InputsError
 from snnkart.contract.deploy_record import DeployRecord
+from snnkart.contract.sanafe_record import SanafeSection
 from snnkart.energy.counts import SnnCounts
 from snnkart.energy.pricing import terms
 from snnkart.energy.profiles import load_profile
 from snnkart.energy.sanafe_model import (
-    CONTROL_PERIOD_S,
     INSTALL_HINT,
     LOIHI_YAML,
     per_inference,
@@ -75,9 +75,14 @@ def network_job(
     depth = len(chain.sizes) - 1
     arrays["current"] = inputs.current.astype(np.float64) * scale
     arrays["raster"] = _aligned(inputs, depth)
-    job = {"layers": layers, "rows": inputs.num_steps + depth, "steps": inputs.num_steps,
-           "modes": ["replay", "chain"], "neurons_per_core": NEURONS_PER_CORE,
-           "env_steps": {"chain": CHECK_ENV_STEPS}}  # fmt: skip
+    job = {
+        "layers": layers,
+        "rows": inputs.num_steps + depth,
+        "steps": inputs.num_steps,
+        "modes": ["replay", "chain"],
+        "neurons_per_core": NEURONS_PER_CORE,
+        "env_steps": {"chain": CHECK_ENV_STEPS},
+    }
     return job, arrays
 
 
@@ -86,8 +91,14 @@ def _float32_layers(chain: ChainNetwork) -> tuple[list[dict[str, Any]], dict[str
     layers, arrays = [], {}
     for i, layer in enumerate(chain.layers):
         alpha = 0.0 if layer.alpha is None else float(layer.alpha[0])
-        layers.append({"n": layer.size, "threshold": float(layer.threshold[0]),
-                       "leak_decay": float(layer.beta[0]), "input_decay": alpha})  # fmt: skip
+        layers.append(
+            {
+                "n": layer.size,
+                "threshold": float(layer.threshold[0]),
+                "leak_decay": float(layer.beta[0]),
+                "input_decay": alpha,
+            }
+        )
         arrays[f"bias{i}"] = np.zeros(layer.size) if i == 0 else layer.bias.astype(np.float64)
         if i:
             arrays[f"weight{i}"] = layer.weight.astype(np.float64)
@@ -104,9 +115,14 @@ def _lava_layers(
     layers, arrays = [], {}
     params = lava_layers(chain, "fixed" if fixed is not None else "float64", fixed)
     for i, p in enumerate(params):
-        layers.append({"n": chain.sizes[i], "threshold": float(p.vth),
-                       "leak_decay": (one - p.dv) / one,
-                       "input_decay": (one - p.du - offset) / one})  # fmt: skip
+        layers.append(
+            {
+                "n": chain.sizes[i],
+                "threshold": float(p.vth),
+                "leak_decay": (one - p.dv) / one,
+                "input_decay": (one - p.du - offset) / one,
+            }
+        )
         bias = np.asarray(p.bias_mant, dtype=np.float64) * 2.0**p.bias_exp
         arrays[f"bias{i}"] = bias / unit
         if p.weight is not None:
@@ -131,12 +147,18 @@ def _aligned(inputs: DeployInputs, depth: int) -> np.ndarray:
 def _find_nir(record: DeployRecord, deploy_dir: Path) -> Path | None:
     recorded = Path(record.nir_file or "policy.nir")
     base = deploy_dir if deploy_dir.is_dir() else deploy_dir.parent
-    return next((p for p in (recorded, base.parent / recorded.name, base / recorded.name)
-                 if p.is_file()), None)  # fmt: skip
+    return next(
+        (p for p in (recorded, base.parent / recorded.name, base / recorded.name) if p.is_file()),
+        None,
+    )
 
 
-def sanafe_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts,
-                   find: Callable[[], str | None] = sanafe_python) -> dict[str, Any]:  # fmt: skip
+def sanafe_section(
+    record: DeployRecord,
+    deploy_dir: Path,
+    snn: SnnCounts,
+    find: Callable[[], str | None] = sanafe_python,
+) -> SanafeSection:
     """The report's ``sanafe`` entry; ``available`` false with the reason and how to add it
     when SANA-FE (looked for by ``find``), the recorded inputs or the NIR file is missing."""
     python = find()
@@ -156,8 +178,9 @@ def sanafe_section(record: DeployRecord, deploy_dir: Path, snn: SnnCounts,
     return compare(result, inputs, snn, record)
 
 
-def compare(result: dict[str, Any], inputs: DeployInputs, snn: SnnCounts,
-            record: DeployRecord) -> dict[str, Any]:  # fmt: skip
+def compare(
+    result: dict[str, Any], inputs: DeployInputs, snn: SnnCounts, record: DeployRecord
+) -> SanafeSection:
     """SANA-FE's replay per inference against snnkart's Loihi 1 chip terms, the spike counts
     each side saw, the chain check, and the on-chip latency against the control period."""
     replay, chain = result["replay"], result["chain"]
@@ -205,8 +228,8 @@ def compare(result: dict[str, Any], inputs: DeployInputs, snn: SnnCounts,
             "max_s": timed["latency_s"]["max"],
             "from": f"the {timed['mode']} run",
             "replay_s_per_inference": replay["latency_s"]["mean"],
-            "control_period_s": CONTROL_PERIOD_S,
-            "fraction_of_control_period": latency / CONTROL_PERIOD_S,
+            "control_period_s": snn.period_s,
+            "fraction_of_control_period": latency / snn.period_s,
             "steps_per_inference": replay["rows"],
         },
     }

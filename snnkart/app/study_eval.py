@@ -18,7 +18,7 @@ from snnkart.app.study_types import held_out_tracks
 from snnkart.app.worker import EvalJob, WorkerRequest, track_out
 from snnkart.contract.deploy_record import DeployRecord, StepCounts
 from snnkart.contract.eval_record import EvalRecord, EvalSummary
-from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sigma_delta_counts import SigmaDeltaCounts
 from snnkart.envs.tracks import short_name
 from snnkart.errors import UsageError
 from snnkart.io import write_text
@@ -61,8 +61,9 @@ def _eval_job(run: Run, runs_dir: Path, study: StudyConfig) -> tuple[EvalJob, Pa
     episodes, seed = study.eval_episodes, study.eval_seed
     if exportable(run):
         out = run_dir / "study-eval-nir-ref-fixed"
-        job = EvalJob(str(run_dir), episodes, seed, str(out), "nir-ref", "fixed",
-                      sigma_delta=converted(run))  # fmt: skip
+        job = EvalJob(
+            str(run_dir), episodes, seed, str(out), "nir-ref", "fixed", sigma_delta=converted(run)
+        )
         return job, out / "deploy.json"
     out = run_dir / "study-eval.json"
     return EvalJob(str(run_dir), episodes, seed, str(out)), out
@@ -86,8 +87,11 @@ def _stale(job: EvalJob, results: list[Path]) -> bool:
     """Whether ``job`` must run: a result is missing, or was made from another request,
     checkpoint or evaluation code (or before evaluations had keys)."""
     key = _key_file(job)
-    return (not all(r.is_file() for r in results) or not key.is_file()
-            or key.read_text() != _eval_key(job))  # fmt: skip
+    return (
+        not all(r.is_file() for r in results)
+        or not key.is_file()
+        or key.read_text() != _eval_key(job)
+    )
 
 
 PARITY_FAILED = 4
@@ -95,8 +99,13 @@ PARITY_FAILED = 4
 (the record is written and says where)."""
 
 
-def _run_all(jobs: list[tuple[str, WorkerRequest]], width: int, reporter: Reporter, what: str,
-             ok: tuple[int, ...] = (0,)) -> None:  # fmt: skip
+def _run_all(
+    jobs: list[tuple[str, WorkerRequest]],
+    width: int,
+    reporter: Reporter,
+    what: str,
+    ok: tuple[int, ...] = (0,),
+) -> None:
     """Run worker requests (name, request) on the process pool, ``width`` at a time; an exit
     status outside ``ok`` fails. Whatever ends the loop (a failure, Ctrl-C, SIGTERM) stops the
     jobs still running first, as the launcher stops its runs: none outlives the study."""
@@ -112,8 +121,9 @@ def _run_all(jobs: list[tuple[str, WorkerRequest]], width: int, reporter: Report
         Pool(width).run(jobs, lambda item: Job(item[1]), ended)
 
 
-def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
-             reporter: Reporter) -> dict[str, Evaluation]:  # fmt: skip
+def evaluate(
+    runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int, reporter: Reporter
+) -> dict[str, Evaluation]:
     """Each run's evaluation summary, evaluating (``jobs`` at a time) where none was made from
     this request, checkpoint and evaluation code (:func:`_stale`)."""
     todo: list[tuple[str, WorkerRequest]] = []
@@ -128,20 +138,28 @@ def evaluate(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
 HELD_OUT_DIR = "study-held-out"
 
 
-def _held_out_job(run: Run, runs_dir: Path, study: StudyConfig,
-                  tracks: list[str]) -> tuple[EvalJob, list[Path]]:  # fmt: skip
+def _held_out_job(
+    run: Run, runs_dir: Path, study: StudyConfig, tracks: list[str]
+) -> tuple[EvalJob, list[Path]]:
     """A run's evaluation on the held-out ``tracks`` (one worker), and its result files."""
     out = runs_dir / run.spec.name / HELD_OUT_DIR
     nir = exportable(run)
-    job = EvalJob(str(out.parent), study.eval_track_episodes, study.eval_seed, str(out),
-                  "nir-ref" if nir else "torch", sigma_delta=converted(run),
-                  tracks=tracks)  # fmt: skip
+    job = EvalJob(
+        str(out.parent),
+        study.eval_track_episodes,
+        study.eval_seed,
+        str(out),
+        "nir-ref" if nir else "torch",
+        sigma_delta=converted(run),
+        tracks=tracks,
+    )
     files = [track_out(out, t, job.backend) / ("deploy.json" if nir else "") for t in tracks]
     return job, files
 
 
-def evaluate_held_out(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int,
-                      reporter: Reporter) -> dict[str, list[HeldOut]]:  # fmt: skip
+def evaluate_held_out(
+    runs: list[Run], runs_dir: Path, study: StudyConfig, jobs: int, reporter: Reporter
+) -> dict[str, list[HeldOut]]:
     """Each run on the study's held-out tracks (``eval_tracks``), ``eval_track_episodes``
     seeded episodes each on its evaluation backend, where no result of this request, checkpoint
     and code exists; by run name (empty when the study has no held-out tracks)."""
@@ -166,21 +184,29 @@ def evaluate_held_out(runs: list[Run], runs_dir: Path, study: StudyConfig, jobs:
 
 
 def _held_out(track: str, group: str, s: EvalSummary) -> HeldOut:
-    return HeldOut(track=track, group=group, tuning_track=is_tuning_track(track),
-                   episodes=s.episodes, success_rate=s.success_rate, mean_return=s.mean_return,
-                   crashes=s.crashes)  # fmt: skip
+    return HeldOut(
+        track=track,
+        group=group,
+        tuning_track=is_tuning_track(track),
+        episodes=s.episodes,
+        success_rate=s.laps,
+        mean_return=s.mean_return,
+        crashes=s.crash_count,
+    )
 
 
 def median_seed(records: list[RunRecord]) -> RunRecord:
     """The run in the middle of a cell's seeds by steps to N finishes (never = last; ties by
     seed); of an even count, the earlier of the middle two."""
-    order = sorted(records, key=lambda r: (r.steps_to_finishes is None,
-                                           r.steps_to_finishes or 0, r.seed))  # fmt: skip
+    order = sorted(
+        records, key=lambda r: (r.steps_to_finishes is None, r.steps_to_finishes or 0, r.seed)
+    )
     return order[(len(order) - 1) // 2]
 
 
-def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyConfig,
-                        reporter: Reporter) -> list[DeployedRun]:  # fmt: skip
+def deploy_median_seeds(
+    records: list[RunRecord], runs_dir: Path, study: StudyConfig, reporter: Reporter
+) -> list[DeployedRun]:
     """Each SNN cell's median-seed run on lava-sim in fixed point for
     ``study.deploy_episodes`` episodes (the evaluation's first seeds), one at a time (Lava
     runs its own processes); what each deployment gave and whether it was bit-exact."""
@@ -193,8 +219,15 @@ def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyCo
     todo: list[tuple[str, WorkerRequest]] = []
     for r in chosen:
         run_dir = runs_dir / r.name
-        job = EvalJob(str(run_dir), study.deploy_episodes, study.eval_seed, str(run_dir / DEPLOY_DIR),
-                      "lava-sim", "fixed", sigma_delta=policies[r.name] in kinds.CONVERSIONS)  # fmt: skip
+        job = EvalJob(
+            str(run_dir),
+            study.deploy_episodes,
+            study.eval_seed,
+            str(run_dir / DEPLOY_DIR),
+            "lava-sim",
+            "fixed",
+            sigma_delta=policies[r.name] in kinds.CONVERSIONS,
+        )
         if _stale(job, [run_dir / DEPLOY_DIR / "deploy.json"]):
             todo.append((r.name, job))
     # a deployment that left the reference still wrote its record: it shows as not bit-exact
@@ -202,13 +235,22 @@ def deploy_median_seeds(records: list[RunRecord], runs_dir: Path, study: StudyCo
     out = []
     for r in chosen:
         result = DeployRecord.read(runs_dir / r.name / DEPLOY_DIR / "deploy.json")
-        out.append(DeployedRun(
-            track=r.track, env=r.env, variant=r.variant, run=r.name, seed=r.seed,
-            backend="lava-sim fixed", episodes=result.summary.episodes,
-            success_rate=result.summary.success_rate, bit_exact=result.bit_exact,
-            env_steps=result.parity.env_steps, reference_success_rate=r.eval_success_rate,
-            reference_episodes=study.eval_episodes,
-        ))  # fmt: skip
+        out.append(
+            DeployedRun(
+                track=r.track,
+                env=r.env,
+                variant=r.variant,
+                run=r.name,
+                seed=r.seed,
+                backend="lava-sim fixed",
+                episodes=result.summary.episodes,
+                success_rate=result.summary.laps,
+                bit_exact=result.bit_exact,
+                env_steps=result.parity.env_steps,
+                reference_success_rate=r.eval_success_rate,
+                reference_episodes=study.eval_episodes,
+            )
+        )
     return out
 
 

@@ -124,15 +124,22 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
     runs = []
     for track, env, policy in itertools.product(study.tracks, study.envs, study.policies):
         for (variant, _), seed in itertools.product(_of(variants, policy), study.seeds):
-            own = study_run_sets(study.sets, study.cells, study.variants,
-                                 (track, env, policy, variant))  # fmt: skip
+            own = study_run_sets(
+                study.sets, study.cells, study.variants, (track, env, policy, variant)
+            )
             config = load_config(
-                overrides={"env": env, "policy": TRAINED_AS.get(policy, policy),
-                           "track": track, "seed": seed, "total_steps": study.steps},
+                overrides={
+                    "env": env,
+                    "policy": TRAINED_AS.get(policy, policy),
+                    "track": track,
+                    "seed": seed,
+                    "total_steps": study.steps,
+                },
                 sets=["run.tensorboard=false", *KIND_SETS.get(policy, []), *own],
-            )  # fmt: skip
-            name = "-".join([short_name(track), env, policy, *([variant] if variant else []),
-                             f"s{seed}"])  # fmt: skip
+            )
+            name = "-".join(
+                [short_name(track), env, policy, *([variant] if variant else []), f"s{seed}"]
+            )
             problem = data_problem(study.data, [config.seed], [config.track])
             if problem:  # a setting may change a run's seed or track
                 raise UsageError(f'{name}: the study\'s data is "{study.data}", but {problem}')
@@ -148,8 +155,11 @@ def plan(study: StudyConfig, only: list[str] | None = None) -> list[Run]:
 def _of(variants: list[tuple[str, list[str]]], policy: str) -> list[tuple[str, list[str]]]:
     """The variants a policy kind's cells run: those not restricted to another kind
     ('POLICY:NAME'), named without the prefix; none at all = the cell once, as it is."""
-    mine = [(name.rpartition(":")[2], sets) for name, sets in variants
-            if name.rpartition(":")[0] in ("", policy)]  # fmt: skip
+    mine = [
+        (name.rpartition(":")[2], sets)
+        for name, sets in variants
+        if name.rpartition(":")[0] in ("", policy)
+    ]
     return mine or [("", [])]
 
 
@@ -196,8 +206,11 @@ def _set_aside_stale(runs_dir: Path, runs: list[Run]) -> int:
 
 def curve(run_dir: Path) -> Curve:
     """Per iteration: env steps, cumulative training finishes, mean episodic return."""
-    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()
-            if line.strip()]  # fmt: skip
+    rows = [
+        json.loads(line)
+        for line in (run_dir / "metrics.jsonl").read_text().splitlines()
+        if line.strip()
+    ]
     return Curve(
         steps=[r["global_step"] for r in rows],
         finishes=[r["charts/cumulative_finishes"] for r in rows],
@@ -215,32 +228,72 @@ def steps_to(finishes: int, c: Curve) -> int | None:
     return next((s for s, f in zip(c.steps, c.finishes, strict=True) if f >= finishes), None)
 
 
-def run_record(run: Run, result: RunResult, runs_dir: Path, study: StudyConfig,
-               evaluation: Evaluation, held_out: list[HeldOut] | None) -> RunRecord:  # fmt: skip
+def run_record(
+    run: Run,
+    result: RunResult,
+    runs_dir: Path,
+    study: StudyConfig,
+    evaluation: Evaluation,
+    held_out: list[HeldOut] | None,
+) -> RunRecord:
     c = curve(runs_dir / run.spec.name)
     return RunRecord(
-        name=run.spec.name, track=run.track, env=run.env, policy=run.policy,
+        name=run.spec.name,
+        track=run.track,
+        env=run.env,
+        policy=run.policy,
         variant=run.variant,
-        seed=run.seed, status=result.status, steps=result.global_step,
+        seed=run.seed,
+        status=result.status,
+        steps=result.global_step,
         stopped_early=result.stopped_early,
         first_finish_step=result.first_finish_step,
         steps_to_finishes=steps_to(study.finishes, c),
-        training_finishes=result.finishes, training_episodes=result.episodes,
+        training_finishes=result.finishes,
+        training_episodes=result.episodes,
         train_seconds=sum(c.seconds),
         eval_backend=eval_backend(run),
-        eval_success_rate=evaluation.summary.success_rate,
+        eval_success_rate=evaluation.summary.laps,
         eval_mean_return=evaluation.summary.mean_return,
-        eval_crashes=evaluation.summary.crashes,
+        eval_crashes=evaluation.summary.crash_count,
         eval_mean_lap_time=evaluation.summary.mean_lap_time,
         eval_stood_still=evaluation.summary.stood_still,
         eval_spikes_per_step=evaluation.spikes_per_step,
         eval_counts_per_step=evaluation.counts_per_step,
-        sigma_delta_counts=evaluation.sigma_delta_counts, held_out=held_out, curve=c,
-    )  # fmt: skip
+        sigma_delta_counts=evaluation.sigma_delta_counts,
+        held_out=held_out,
+        curve=c,
+    )
 
 
-def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | None = None,
-              ray: bool = False, only: list[str] | None = None) -> StudyRecord:  # fmt: skip
+def _train(
+    runs: list[Run], runs_dir: Path, reporter: Reporter, jobs: int | None, ray: bool
+) -> list[RunResult]:
+    """Train the runs on Ray Tune (``ray``) or the local pool; a UsageError if one failed."""
+    specs = [r.spec for r in runs]
+    if ray:
+        from snnkart.app.launch_ray import run_on_ray
+
+        results = run_on_ray(specs, runs_dir, cpus=jobs)
+    else:
+        results = LocalPool(runs_dir, jobs=jobs).run(specs, reporter)
+    failed = [r for r in results if r.status not in ("done", "reused")]
+    if failed:
+        raise UsageError(
+            f"{len(failed)} runs did not finish, e.g. {failed[0].name}: "
+            f"{failed[0].status} ({failed[0].error})"
+        )
+    return results
+
+
+def run_study(
+    study: StudyConfig,
+    out: Path,
+    reporter: Reporter,
+    jobs: int | None = None,
+    ray: bool = False,
+    only: list[str] | None = None,
+) -> StudyRecord:
     """Train, evaluate and summarise the study into ``out`` (``out/runs/<name>`` per run,
     ``out/study.json``); returns the record. ``only``: see :func:`plan` (a piece of a study;
     the record then covers that piece)."""
@@ -251,24 +304,17 @@ def run_study(study: StudyConfig, out: Path, reporter: Reporter, jobs: int | Non
     runs = plan(study, only)
     stale = _set_aside_stale(runs_dir, runs)
     start = time.perf_counter()
-    specs = [r.spec for r in runs]
-    if ray:
-        from snnkart.app.launch_ray import run_on_ray
-
-        results = run_on_ray(specs, runs_dir, cpus=jobs)
-    else:
-        results = LocalPool(runs_dir, jobs=jobs).run(specs, reporter)
-    failed = [r for r in results if r.status not in ("done", "reused")]
-    if failed:
-        raise UsageError(f"{len(failed)} runs did not finish, e.g. {failed[0].name}: "
-                         f"{failed[0].status} ({failed[0].error})")  # fmt: skip
+    results = _train(runs, runs_dir, reporter, jobs, ray)
     train_wall = time.perf_counter() - start
     width = jobs or os.cpu_count() or 1
     evaluations = evaluate(runs, runs_dir, study, width, reporter)
     held_out = evaluate_held_out(runs, runs_dir, study, width, reporter)
-    records = [run_record(run, res, runs_dir, study, evaluations[run.spec.name],
-                          held_out.get(run.spec.name))
-               for run, res in zip(runs, results, strict=True)]  # fmt: skip
+    records = [
+        run_record(
+            run, res, runs_dir, study, evaluations[run.spec.name], held_out.get(run.spec.name)
+        )
+        for run, res in zip(runs, results, strict=True)
+    ]
     record = StudyRecord(
         schema=RECORD_SCHEMA,
         study=StudySettings(**study.model_dump(mode="json", by_alias=True)),

@@ -17,13 +17,28 @@ from snnkart.rl import kinds
 ORIGINAL = {
     # kart-simulator's headline table (one run per cell, as quoted in issue 17):
     # first finish and step at 300 finishes, ANN and SNN, and ANN steps / SNN steps to 300.
-    "grid": {"ann_first": 141_000, "snn_first": 175_000, "ann_300": 402_000, "snn_300": 406_000,
-             "snn_pct_of_ann": 99.0},
-    "gazebo": {"ann_first": 82_000, "snn_first": 22_000, "ann_300": 431_000, "snn_300": 507_000,
-               "snn_pct_of_ann": 85.0},
-    "steer": {"ann_first": 156_000, "snn_first": 441_000, "ann_300": 724_000, "snn_300": 957_000,
-              "snn_pct_of_ann": 75.7},
-}  # fmt: skip
+    "grid": {
+        "ann_first": 141_000,
+        "snn_first": 175_000,
+        "ann_300": 402_000,
+        "snn_300": 406_000,
+        "snn_pct_of_ann": 99.0,
+    },
+    "gazebo": {
+        "ann_first": 82_000,
+        "snn_first": 22_000,
+        "ann_300": 431_000,
+        "snn_300": 507_000,
+        "snn_pct_of_ann": 85.0,
+    },
+    "steer": {
+        "ann_first": 156_000,
+        "snn_first": 441_000,
+        "ann_300": 724_000,
+        "snn_300": 957_000,
+        "snn_pct_of_ann": 75.7,
+    },
+}
 
 
 def spread(values: list[float | None]) -> Spread:
@@ -49,24 +64,37 @@ def summarise(records: list[RunRecord], study: Any) -> list[CellSummary]:
     out = []
     for (track, env, policy, variant), rs in cells.items():
         spikes = [r.eval_spikes_per_step for r in rs]
-        synops = [None if r.eval_counts_per_step is None else r.eval_counts_per_step.chip_synops
-                  for r in rs]  # fmt: skip
-        out.append(CellSummary(
-            track=track, env=env, policy=policy, variant=variant,
-            seeds=[r.seed for r in rs],
-            first_finish_step=spread([r.first_finish_step for r in rs]),
-            steps_to_finishes=spread([r.steps_to_finishes for r in rs]),
-            eval_success_rate=spread([r.eval_success_rate for r in rs]),
-            eval_spikes_per_step=spread(spikes) if None not in spikes else None,
-            eval_synops_per_step=spread(synops) if None not in synops else None,
-            train_seconds=spread([r.train_seconds for r in rs]),
-            env_steps=sum(r.steps for r in rs),
-        ))  # fmt: skip
+        synops = [
+            None if r.eval_counts_per_step is None else r.eval_counts_per_step.chip_synops
+            for r in rs
+        ]
+        out.append(
+            CellSummary(
+                track=track,
+                env=env,
+                policy=policy,
+                variant=variant,
+                seeds=[r.seed for r in rs],
+                first_finish_step=spread([r.first_finish_step for r in rs]),
+                steps_to_finishes=spread([r.steps_to_finishes for r in rs]),
+                eval_success_rate=spread([r.eval_success_rate for r in rs]),
+                eval_spikes_per_step=spread(spikes) if None not in spikes else None,
+                eval_synops_per_step=spread(synops) if None not in synops else None,
+                train_seconds=spread([r.train_seconds for r in rs]),
+                env_steps=sum(r.steps for r in rs),
+            )
+        )
     for i, entry in enumerate(out):
         if kinds.compared_to_baseline(entry.policy):
-            ann = next((e for e in out if e.policy == kinds.BASELINE
-                        and (e.track, e.env, e.variant) == (entry.track, entry.env, entry.variant)),
-                       None)  # fmt: skip
+            ann = next(
+                (
+                    e
+                    for e in out
+                    if e.policy == kinds.BASELINE
+                    and (e.track, e.env, e.variant) == (entry.track, entry.env, entry.variant)
+                ),
+                None,
+            )
             out[i] = dataclasses.replace(entry, snn_pct_of_ann=pct_of_ann(ann, entry))
     return out
 

@@ -31,8 +31,8 @@ def run_training(
     total = trainer.num_iterations * cfg.batch_size
     rounded = f" (rounded up to whole rollouts: {total:,})" if total != cfg.total_steps else ""
     reporter.message(
-        f"training {cfg.policy.upper()} on {cfg.env}/{track_label(trainer.track.name, cfg.track)} "
-        f"({cfg.action_mode}), {cfg.total_steps:,} steps{rounded}, seed {cfg.seed} -> {run_dir}"
+        f"training {cfg.policy.upper()} on {_where(trainer)}, {cfg.total_steps:,} steps{rounded}, "
+        f"seed {cfg.seed} -> {run_dir}"
         + (f" (resuming at step {trainer.progress.global_step:,})" if resume else "")
     )
     if trainer.bc is not None:
@@ -53,11 +53,13 @@ def run_training(
     if trainer.stopped_early:
         stop = cfg.stop
         ended = f"stopped early ({stop.checks} checks in a row at >= {stop.success:.0%} success)"
-    reporter.message(
-        f"{ended} at step {result.global_step:,}: "
+    laps = (
         f"{result.finishes:,} laps finished in {result.episodes:,} episodes; "
         + ("no lap finished yet" if first < 0 else f"the first at step {first:,}")
+        if trainer.track is not None
+        else f"{result.episodes:,} episodes"
     )
+    reporter.message(f"{ended} at step {result.global_step:,}: {laps}")
     reporter.message(
         f"checkpoint {run_dir / 'checkpoint.pt'}, metrics {run_dir / 'metrics.jsonl'}, "
         f"TensorBoard {run_dir / 'tb'}"
@@ -70,6 +72,14 @@ def run_training(
         f"{result.global_step:,}. Resume with: snnkart train --resume --out {run_dir}"
     )
     return 128 + signum
+
+
+def _where(trainer: Trainer) -> str:
+    """The env a run trains on: a kart env with its track and action mode, or any other env."""
+    cfg, track = trainer.cfg, trainer.track
+    if track is None:
+        return cfg.env
+    return f"{cfg.env}/{track_label(track.name, cfg.track)} ({cfg.action_mode})"
 
 
 def _trainer(

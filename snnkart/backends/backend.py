@@ -57,7 +57,7 @@ class RunningPolicy:
     way out gives way to that error.
 
     A family supplies the model (:class:`Backend` for LIF chains,
-    :class:`~snnkart.backends.sdnn_backend.SigmaDeltaBackend`); a backend of it opens the
+    :class:`~snnkart.backends.sigma_delta_backend.SigmaDeltaBackend`); a backend of it opens the
     engine; :data:`snnkart.backends.registry.ENGINES` names each (backend, family) pair."""
 
     name: ClassVar[str]

@@ -44,9 +44,14 @@ class WindowResult:
 
 
 COUNTED = (
-    "spikes", "synops", "neuron_updates",
-    "overhead_spikes", "overhead_synops", "overhead_neuron_updates", "payload_bits",
-)  # fmt: skip
+    "spikes",
+    "synops",
+    "neuron_updates",
+    "overhead_spikes",
+    "overhead_synops",
+    "overhead_neuron_updates",
+    "payload_bits",
+)
 
 
 @dataclass

@@ -15,7 +15,7 @@ project's parity claim (lava-sim is bit-exact with nir-ref in it) and of every s
 evaluation; torch's ``float32`` order of operations is asked for by name.
 
 It imports nothing heavy (no numpy): the command line reads it at start-up for its help.
-:data:`snnkart.backends.registry.PRECISIONS` must hold the same words (tests/test_doors.py).
+:data:`snnkart.backends.registry.PRECISIONS` is read from it.
 """
 
 from __future__ import annotations

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.backends.graph_walk import input_normalisation
 from snnkart.backends.network import ChainNetwork, UnsupportedGraphError, chain_from_graph
 from snnkart.backends.quantize import lava_problems
 
@@ -22,9 +23,19 @@ WEIGHT_FIELDS = ("weight", "bias")
 """The fields counted as weights and biases: what the energy report's footprint counts too;
 every other field (time constants, resistances, thresholds, ...) is a neuron parameter."""
 PARAMETER_FIELDS = (
-    "weight", "bias", "scale", "tau", "tau_mem", "tau_syn", "r", "w_in", "v_leak",
-    "v_threshold", "v_reset", "delay",
-)  # fmt: skip
+    "weight",
+    "bias",
+    "scale",
+    "tau",
+    "tau_mem",
+    "tau_syn",
+    "r",
+    "w_in",
+    "v_leak",
+    "v_threshold",
+    "v_reset",
+    "delay",
+)
 
 
 @dataclass
@@ -52,6 +63,7 @@ class GraphInfo:
     layers: list[dict[str, Any]] = field(default_factory=list)  # per spiking layer, at dt
     state: str | None = None  # the manifest's state semantics, when the graph alone misleads
     recurrence: list[str] = field(default_factory=list)  # each cycle, and how it runs
+    normalisation: str | None = None  # the input normalisation node (host-side, not counted)
 
     @property
     def lava_supported(self) -> bool:
@@ -131,11 +143,17 @@ def describe_graph(
     chain, shapes, finite values, with a dt far below every time constant): whether a layer's
     gains fit Lava depends on dt, so lava-sim's checks and the per-layer decays need it."""
     nodes = [_node(name, graph.nodes[name]) for name in _flow_order(graph)]
+    try:  # an observation normalisation runs on the host: not the network's parameters
+        norm = input_normalisation(graph)
+    except UnsupportedGraphError:
+        norm = None
+    counted = [n for n in nodes if n.name != norm]
     info = GraphInfo(
         nodes=nodes,
         edges=[(str(a), str(b)) for a, b in graph.edges],
-        parameter_count=sum(n.count for n in nodes),
-        weight_count=sum(n.weights for n in nodes),
+        parameter_count=sum(n.count for n in counted),
+        weight_count=sum(n.weights for n in counted),
+        normalisation=norm,
         dt=dt,
         dt_source=dt_source,
         discretisation=discretisation,

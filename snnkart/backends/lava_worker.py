@@ -160,8 +160,15 @@ class LavaNetwork(BridgedNetwork):
         bridge = HostBridge(sizes=self.sizes, num_steps=self.T, name="host_bridge")
         self.lifs = []
         for i, layer in enumerate(spec.layers):
-            common = dict(shape=(self.sizes[i],), du=layer.du, dv=layer.dv, vth=layer.vth,
-                          bias_mant=layer.bias_mant, bias_exp=layer.bias_exp, name=f"lif{i}")  # fmt: skip
+            common = dict(
+                shape=(self.sizes[i],),
+                du=layer.du,
+                dv=layer.dv,
+                vth=layer.vth,
+                bias_mant=layer.bias_mant,
+                bias_exp=layer.bias_exp,
+                name=f"lif{i}",
+            )
             lif = (
                 LIF(**common)
                 if spec.persist
@@ -232,9 +239,11 @@ class SigmaDeltaNetwork(BridgedNetwork):
             )
             sender.s_out.connect([dense.s_in, getattr(bridge, f"s_in{i}")])
             sender = SigmaDelta(
-                shape=(w.shape[0],), vth=spec.vth[i], bias=spec.biases[i],
+                shape=(w.shape[0],),
+                vth=spec.vth[i],
+                bias=spec.biases[i],
                 act_mode=ActivationMode.RELU,
-            )  # fmt: skip
+            )
             dense.a_out.connect(sender.a_in)
         sender.s_out.connect(getattr(bridge, f"s_in{len(spec.weights) - 1}"))
         self._start(bridge, fixed)
@@ -280,11 +289,14 @@ def main() -> int:
         except Exception as exc:
             write_msg(
                 proto_out,
-                ("error", f"Lava (lava-nc 0.10) cannot be imported in Python "
-                          f"{sys.version.split()[0]} ({type(exc).__name__}: {exc}); it needs "
-                          "Python 3.10 and numpy < 2: run `bash scripts/setup.sh` to create a "
-                          "Python 3.10 environment"),
-            )  # fmt: skip
+                (
+                    "error",
+                    f"Lava (lava-nc 0.10) cannot be imported in Python "
+                    f"{sys.version.split()[0]} ({type(exc).__name__}: {exc}); it needs "
+                    "Python 3.10 and numpy < 2: run `bash scripts/setup.sh` to create a "
+                    "Python 3.10 environment",
+                ),
+            )
             return 3
         net = build_network(spec)
         write_msg(proto_out, ("ready", {"startup_s": net.startup_s, "pid": os.getpid()}))

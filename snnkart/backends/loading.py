@@ -23,9 +23,10 @@ from snnkart.backends.network import (
     chain_from_graph,
 )
 from snnkart.backends.quantize import FixedPointNetwork, quantize
-from snnkart.backends.sdnn_policy import SigmaDeltaPolicy, sigma_delta_policy
+from snnkart.backends.sigma_delta_policy import SigmaDeltaPolicy, sigma_delta_policy
 from snnkart.contract.deploy_record import NetworkShape
 from snnkart.contract.manifest import LayerSpec, Manifest, manifest_path
+from snnkart.contract.obs_node import without_obs_node
 from snnkart.errors import NIRFileError
 
 MISSING_HINT = "; create one with `snnkart export --nir RUN`"
@@ -57,9 +58,12 @@ class LoadedPolicy:
         """The chain's shape, as the deploy record keeps it for the energy report."""
         chain = self.chain
         return NetworkShape(
-            n_in=chain.n_in, sizes=tuple(chain.sizes), n_out=chain.n_out,
-            readout=chain.readout_weight is not None, input_scale=chain.input_scale is not None,
-        )  # fmt: skip
+            n_in=chain.n_in,
+            sizes=tuple(chain.sizes),
+            n_out=chain.n_out,
+            readout=chain.readout_weight is not None,
+            input_scale=chain.input_scale is not None,
+        )
 
 
 def load_policy(path: str | Path) -> LoadedPolicy:
@@ -79,12 +83,27 @@ Opened = LoadedPolicy | SigmaDeltaPolicy
 
 def open_policy(path: str | Path) -> Opened:
     """Read and validate the policy ``path``: a LIF chain, or a sigma-delta policy when its
-    manifest has a ``sigma_delta`` block (:mod:`snnkart.backends.sdnn_policy`)."""
+    manifest has a ``sigma_delta`` block (:mod:`snnkart.backends.sigma_delta_policy`)."""
     path = Path(path)
     graph, manifest = load_nir(path)
+    graph = _host_normalised(path, graph, manifest)
     if manifest.sigma_delta is not None:
         return sigma_delta_policy(path, graph, manifest)
     return LoadedPolicy(path, graph, manifest, _checked_chain(path, graph, manifest))
+
+
+def _host_normalised(path: Path, graph: Any, manifest: Manifest) -> Any:
+    """The graph as the backends run it: a v4 manifest's ``obs_node`` checked against the
+    manifest's statistics and removed, since the host applies the manifest's normalisation
+    (:mod:`snnkart.contract.obs_node`)."""
+    if manifest.obs_node is None:
+        return graph
+    try:
+        return without_obs_node(
+            graph, manifest.obs_node, np.asarray(manifest.obs_mean), np.asarray(manifest.obs_std)
+        )
+    except ValueError as exc:
+        raise NIRFileError(f"{path}: {exc}; export the policy again") from None
 
 
 def as_policy(source: str | Path | LoadedPolicy) -> LoadedPolicy:

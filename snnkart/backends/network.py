@@ -2,8 +2,12 @@
 
 Supported subset (anything else is refused with an error naming the node type):
 
-    Input -> [Scale] -> (Affine | Linear) -> (LIF | IF | CubaLIF) -> ... -> (Affine | Linear)
-             -> [LI] -> Output              (or the last spiking layer -> Output: no readout)
+    Input -> [Scale] -> [diagonal Affine] -> (Affine | Linear) -> (LIF | IF | CubaLIF) -> ...
+             -> (Affine | Linear) -> [LI] -> Output   (or the last spiking layer -> Output)
+
+A diagonal Affine before the first synapse (an observation normalisation, as snnkart's v4
+exports write it: :mod:`snnkart.contract.obs_node`) is folded into that synapse here; a policy
+opened with its manifest has it removed instead, and the host normalises.
 
 NIR nodes are continuous-time; the chain is discretised with the recorded ``dt`` by forward
 Euler, the convention of snntorch's exporter (snntorch writes tau = dt / (1 - beta), r = tau / dt):
@@ -38,6 +42,9 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.backends.graph_walk import chain_order as _chain_order
+from snnkart.backends.graph_walk import leading_normalisation
+from snnkart.backends.graph_walk import recurrent_synapses as _recurrent_synapses
 from snnkart.errors import UnsupportedGraphError
 
 DISCRETISATIONS = ("euler", "exact")
@@ -223,6 +230,9 @@ def chain_from_graph(graph: Any, dt: float, discretisation: str = "euler") -> Ch
     if body and isinstance(nodes[body[0]], nir.Scale):
         scale = _array(nodes[body[0]], body[0], "scale").reshape(-1)
         body = body[1:]
+    if leading_normalisation(nodes, body) is not None:
+        nodes = {**nodes, body[1]: _folded(nodes[body[0]], nodes[body[1]])}
+        body = body[1:]
     li = None
     if body and isinstance(nodes[body[-1]], nir.LI):
         li_name, body = body[-1], body[:-1]
@@ -245,6 +255,17 @@ def chain_from_graph(graph: Any, dt: float, discretisation: str = "euler") -> Ch
         readout_node=None if readout is None else readout[2],
         readout_li=li,
     )
+
+
+def _folded(first: Any, synapse: Any) -> Any:
+    """``synapse`` after the diagonal Affine ``first``, as one Affine (float64)."""
+    import nir
+
+    d = np.diag(np.asarray(first.weight, dtype=np.float64))
+    c = np.asarray(first.bias, dtype=np.float64).reshape(-1)
+    w = np.asarray(synapse.weight, dtype=np.float64)
+    b = np.asarray(getattr(synapse, "bias", np.zeros(w.shape[0])), dtype=np.float64).reshape(-1)
+    return nir.Affine(weight=w * d, bias=w @ c + b)
 
 
 def _leaky_readout(name: str, node: Any, n: int, dt: float, discretisation: str) -> LeakyReadout:
@@ -281,27 +302,6 @@ def _per_neuron(
     return out
 
 
-def _recurrent_synapses(graph: Any) -> dict[str, str]:
-    """``{neuron: synapse}`` for every cycle ``neuron -> synapse -> neuron`` through an Affine
-    or Linear whose only input and only output is that neuron (NIR's recurrence, as snnTorch's
-    ``RLeaky`` export and snnkart's ``rsnn`` kind write it)."""
-    import nir
-
-    succ: dict[str, list[str]] = {}
-    pred: dict[str, list[str]] = {}
-    for src, dst in graph.edges:
-        succ.setdefault(src, []).append(dst)
-        pred.setdefault(dst, []).append(src)
-    cycles = {}
-    for name, node in graph.nodes.items():
-        if not isinstance(node, (nir.Affine, nir.Linear)):
-            continue
-        ins, outs = pred.get(name, []), succ.get(name, [])
-        if len(ins) == 1 and outs == ins and isinstance(graph.nodes[ins[0]], (nir.LIF, nir.IF)):
-            cycles[ins[0]] = name
-    return cycles
-
-
 def _with_recurrence(
     layer: SpikingLayer, nodes: dict[str, Any], cycles: dict[str, str]
 ) -> SpikingLayer:
@@ -319,54 +319,6 @@ def _with_recurrence(
     # it is the same current as a bias on the feed-forward synapse, so it is folded there.
     folded = (layer.bias.astype(np.float32) + bias).astype(np.float32)
     return replace(layer, bias=folded, recurrent=weight, recurrent_node=name)
-
-
-def _chain_order(graph: Any, recurrent: set[str] | frozenset[str] = frozenset()) -> list[str]:
-    """The node names from the one Input to the Output, checked to form a single chain of
-    supported nodes; ``recurrent``: the synapses of cycles (:func:`_recurrent_synapses`),
-    which are not on the chain."""
-    import nir
-
-    nodes = {k: v for k, v in graph.nodes.items() if k not in recurrent}
-    succ: dict[str, list[str]] = {}
-    for src, dst in graph.edges:
-        if src not in recurrent and dst not in recurrent:
-            succ.setdefault(src, []).append(dst)
-    supported = (
-        nir.Input, nir.Output, nir.Affine, nir.Linear, nir.LIF, nir.IF, nir.CubaLIF, nir.LI,
-        nir.Scale,
-    )  # fmt: skip
-    for name, node in nodes.items():
-        if not isinstance(node, supported):
-            raise UnsupportedGraphError(
-                f"node {name!r} is a {type(node).__name__}; supported node types are "
-                "Input, Output, Affine, Linear, LIF, IF, CubaLIF, LI (as the readout) and Scale "
-                "(after the input)"
-            )
-    inputs = [k for k, n in nodes.items() if isinstance(n, nir.Input)]
-    if len(inputs) != 1:
-        raise UnsupportedGraphError(f"the graph must have exactly one Input node, found {inputs}")
-    order = [inputs[0]]
-    while True:
-        nxt = succ.get(order[-1], [])
-        if not nxt:
-            break
-        if len(nxt) > 1:
-            raise UnsupportedGraphError(
-                f"node {order[-1]!r} feeds {nxt}; only feed-forward chains are supported"
-            )
-        if nxt[0] in order:
-            raise UnsupportedGraphError(
-                f"recurrent edge {order[-1]!r} -> {nxt[0]!r}; a cycle runs only as a neuron's "
-                "own recurrent synapse (neuron -> Affine/Linear -> the same neuron)"
-            )
-        order.append(nxt[0])
-    if len(order) != len(nodes):
-        missing = sorted(set(nodes) - set(order))
-        raise UnsupportedGraphError(f"nodes {missing} are not on the chain from the input")
-    if not isinstance(nodes[order[-1]], nir.Output):
-        raise UnsupportedGraphError(f"the chain ends at {order[-1]!r}, not at an Output node")
-    return order
 
 
 def _layers(

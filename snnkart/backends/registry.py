@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from snnkart.backends.base import Arithmetic
+from snnkart.backends.defaults import NIR_BACKENDS, TABLE
 from snnkart.backends.loading import Opened, open_policy
 from snnkart.errors import DeployError, did_you_mean
 
@@ -21,17 +22,17 @@ if TYPE_CHECKING:
     from snnkart.backends.backend import RunningPolicy
 
 PRECISIONS: dict[str, dict[str, Arithmetic]] = {
-    "lava-sim": {"float": "float64", "fixed": "fixed"},
-    "nir-ref": {"float32": "float32", "float64": "float64", "float": "float64", "fixed": "fixed"},
+    name: TABLE[name].precisions for name in sorted(NIR_BACKENDS)
 }
-"""Per backend, the accepted ``--precision`` words and the arithmetic each means."""
+"""Per NIR backend, the accepted ``--precision`` words and the arithmetic each means (the
+defaults table's, :mod:`snnkart.backends.defaults`)."""
 BACKENDS = tuple(PRECISIONS)
 
 ENGINES: dict[tuple[str, str], str] = {
     ("lava-sim", "lif"): "snnkart.backends.lava_sim:LavaSimPredictor",
     ("nir-ref", "lif"): "snnkart.backends.reference:NIRReference",
-    ("lava-sim", "sigma_delta"): "snnkart.backends.sdnn_lava:SigmaDeltaLava",
-    ("nir-ref", "sigma_delta"): "snnkart.backends.sdnn_backend:SigmaDeltaReference",
+    ("lava-sim", "sigma_delta"): "snnkart.backends.sigma_delta_lava:SigmaDeltaLava",
+    ("nir-ref", "sigma_delta"): "snnkart.backends.sigma_delta_backend:SigmaDeltaReference",
 }
 """Per (backend, family), ``module:class`` of the :class:`~snnkart.backends.backend.
 RunningPolicy` that runs a policy of that family on the backend (its ``open_engine`` starts

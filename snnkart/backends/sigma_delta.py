@@ -241,10 +241,14 @@ def spec_from_block(
     units = [block.input_scale, *(la.act_scale for la in block.layers), block.out_scale]
     hidden = range(len(block.layers))
     if arithmetic == "fixed":
-        ws = [np.rint(np.asarray(w, np.float64) * units[i] / units[i + 1]).astype(np.int64)
-              for i, w in enumerate(weights)]  # fmt: skip
-        bs = [np.rint(np.asarray(biases[i], np.float64) / units[i + 1]).astype(np.int64)
-              for i in hidden]  # fmt: skip
+        ws = [
+            np.rint(np.asarray(w, np.float64) * units[i] / units[i + 1]).astype(np.int64)
+            for i, w in enumerate(weights)
+        ]
+        bs = [
+            np.rint(np.asarray(biases[i], np.float64) / units[i + 1]).astype(np.int64)
+            for i in hidden
+        ]
         vth: list[float] = [float(la.vth) for la in block.layers]
         vth_in: float = block.vth_in
     else:

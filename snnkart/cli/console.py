@@ -74,7 +74,7 @@ class ConsoleReporter:
                     completed=_count(record, "global_step"),
                     sps=f"{record['charts/SPS']:,.0f}",
                     ret=fmt(record["charts/episodic_return"]),
-                    fin=f"{record['charts/cumulative_finishes']:,}",
+                    fin=_laps(record),
                 )
 
             yield update
@@ -90,11 +90,17 @@ class ConsoleReporter:
                 return
             self.message(
                 f"step {step:,}/{total:,}  return {fmt(record['charts/episodic_return'])}  "
-                f"laps {record['charts/cumulative_finishes']:,}  "
-                f"{record['charts/SPS']:,.0f} steps/s  {time.monotonic() - start:,.0f} s"
+                + (f"laps {_laps(record)}  " if _laps(record) != "-" else "")
+                + f"{record['charts/SPS']:,.0f} steps/s  {time.monotonic() - start:,.0f} s"
             )
 
         return update
+
+
+def _laps(record: Mapping[str, float | None]) -> str:
+    """The run's finished laps so far ("-": an env without laps)."""
+    laps = record.get("charts/cumulative_finishes")
+    return "-" if laps is None else f"{laps:,}"
 
 
 def _count(record: Mapping[str, float | None], key: str) -> int:
@@ -142,8 +148,13 @@ def print_headline(report: Mapping[str, object], rows: list[dict[str, str]]) -> 
         caption=f"success: SNN {snn_task['success_rate']:.0%}, ANN {ann_rate} "
         f"({snn_task['episodes']} episodes); report.html has every pair and figure",
     )
-    keys = {"SNN on": "SNN on", "ANN on": "ANN on", "SNN nJ/inference": "SNN nJ",
-            "ANN nJ/inference": "ANN nJ", "SNN/ANN": "SNN/ANN"}  # fmt: skip
+    keys = {
+        "SNN on": "SNN on",
+        "ANN on": "ANN on",
+        "SNN nJ/inference": "SNN nJ",
+        "ANN nJ/inference": "ANN nJ",
+        "SNN/ANN": "SNN/ANN",
+    }
     for title in keys.values():
         table.add_column(title, justify="right")
     for row in rows:
@@ -161,11 +172,15 @@ def print_sd_answer(report: Mapping[str, object], answer: str, rows: list[dict[s
     sd = sd_report(report)
     if not sd["drives"]:
         rate = sd["task"]["success_rate"]
-        console.print(f"[bold red]WARNING: the sigma-delta policy does not drive (success "
-                      f"{rate:.0%} < 80 %): its energy numbers are not a result.[/]")  # fmt: skip
+        console.print(
+            f"[bold red]WARNING: the sigma-delta policy does not drive (success "
+            f"{rate:.0%} < 80 %): its energy numbers are not a result.[/]"
+        )
     console.print(answer)
-    table = Table(title="energy per inference, sigma-delta vs the same-shape ANN",
-                  caption="report.html has every term, the counts per layer and the figures")  # fmt: skip
+    table = Table(
+        title="energy per inference, sigma-delta vs the same-shape ANN",
+        caption="report.html has every term, the counts per layer and the figures",
+    )
     keys = [k for k in rows[0] if k != "updates rule"] if rows else []
     for title in keys:
         table.add_column(title, justify="right")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Collection
 from pathlib import Path
-from typing import Annotated, NoReturn, TypeVar
+from typing import Annotated, Any, NoReturn, TypeVar
 
 import typer
 
@@ -24,10 +24,14 @@ def guard(call: Callable[[], T], interrupted: str | None = None) -> T:
     (``error: ...``), 4 for a parity mismatch (its summary is already shown), 130/143 for
     Ctrl-C/SIGTERM with ``interrupted`` saying what was kept. Anything else is a bug and
     propagates with its traceback."""
+    import warnings
+
     from snnkart.errors import ParityError
 
     try:
-        return call()
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning
+            return call()
     except KeyboardInterrupt as exc:
         if interrupted is None:
             raise
@@ -36,6 +40,13 @@ def guard(call: Callable[[], T], interrupted: str | None = None) -> T:
         fail(str(exc), code=4)
     except SnnkartError as exc:
         fail(str(exc))
+
+
+def _one_line_warning(
+    message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any
+) -> None:
+    """snnkart's own warnings (a user's concern, e.g. another env version) as one line."""
+    typer.secho(f"warning: {message}", fg=typer.colors.YELLOW, err=True)
 
 
 def interrupted_exit(exc: KeyboardInterrupt, what: str) -> NoReturn:
@@ -63,5 +74,7 @@ def refuse_other_files(out: Path, own: Collection[str] = (), force: bool = False
     other = sorted(p.name for p in out.iterdir() if p.name not in own and p.name[0] != ".")
     if other:
         shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
-        fail(f"{out} already holds other files ({shown}); choose an empty or new --out, or "
-             "pass --force to write into it anyway (nothing is deleted)")  # fmt: skip
+        fail(
+            f"{out} already holds other files ({shown}); choose an empty or new --out, or "
+            "pass --force to write into it anyway (nothing is deleted)"
+        )

@@ -14,7 +14,7 @@ import typer
 from snnkart.backends.defaults import BACKENDS, NIR_BACKENDS, default_help, precision_help
 from snnkart.cli.console import ConsoleReporter, print_headline
 from snnkart.cli.export import export
-from snnkart.cli.guard import ForceOpt, fail, guard, interrupted_exit, refuse_other_files
+from snnkart.cli.guard import ForceOpt, fail, guard, refuse_other_files
 from snnkart.cli.help import finish_help
 from snnkart.cli.nir import nir_app
 from snnkart.cli.record import record
@@ -24,8 +24,8 @@ from snnkart.cli.ros import ros_app
 from snnkart.cli.study import study
 from snnkart.cli.sweep import sweep
 from snnkart.cli.track import track_app
-from snnkart.errors import CheckpointWriteError, SnnkartError
-from snnkart.rl import kinds
+from snnkart.cli.train import train
+from snnkart.errors import SnnkartError
 
 app = typer.Typer(
     name="snnkart",
@@ -148,108 +148,7 @@ def demo(
     print_headline(finished["report"], headline(finished["report"]))
 
 
-_SET_HELP = (
-    "any hyperparameter: KEY=VALUE, e.g. ppo.learning_rate=1e-3 or ann.activation=relu "
-    "(the ANN's hidden activation; default tanh)"
-)
-
-
-_PretrainBCOption = Annotated[
-    Path | None, typer.Option(help="warm-start by behaviour cloning this recording first")
-]
-_BCEpochsOption = Annotated[int | None, typer.Option(help="--pretrain-bc: epochs of cloning")]
-
-
-@app.command()
-def train(
-    env: Annotated[
-        str | None,
-        typer.Option("--env", "-e", help="grid, gazebo or steer", show_default="steer"),
-    ] = None,
-    track: Annotated[
-        str | None,
-        typer.Option("--track", "-t", help="big_S, small_S or a file", show_default="small_S"),
-    ] = None,
-    policy: Annotated[
-        str | None, typer.Option(help=kinds.choices_help(), show_default="snn")
-    ] = None,
-    steps: Annotated[
-        int | None,
-        typer.Option(
-            help="total env steps (with --resume: extend the run to this many)",
-            show_default="300000; with --resume the run's own",
-        ),
-    ] = None,
-    seed: Annotated[int | None, typer.Option(help="random seed", show_default="1")] = None,
-    action_mode: Annotated[
-        str | None, typer.Option(help="discrete or continuous", show_default="discrete")
-    ] = None,
-    out: Annotated[
-        Path | None,
-        typer.Option("--out", "-o", help="run directory (default: runs/ENV-POLICY-TRACK-sSEED)"),
-    ] = None,
-    config: Annotated[Path | None, typer.Option("--config", "-c", help="TOML config file")] = None,
-    set_: Annotated[list[str] | None, typer.Option("--set", "-s", help=_SET_HELP)] = None,
-    resume: Annotated[bool, typer.Option(help="continue the run in --out")] = False,
-    pretrain_bc: _PretrainBCOption = None,
-    bc_epochs: _BCEpochsOption = None,
-    force: ForceOpt = False,
-    wandb: Annotated[bool, typer.Option(help="also log to Weights & Biases (extra)")] = False,
-) -> None:
-    """Train a policy of any registered kind with PPO; Ctrl-C checkpoints, --resume goes on."""
-    from snnkart.app.train import run_training
-    from snnkart.envs.tracks import load_track
-    from snnkart.rl.config import load_config
-
-    overrides = {
-        "env": env, "track": track, "policy": policy, "total_steps": steps, "seed": seed,
-        "action_mode": action_mode, **_bc_overrides(pretrain_bc, bc_epochs),
-    }  # fmt: skip
-    run_dir = out or Path("runs")
-    try:
-        cfg = load_config(config, overrides, set_)
-        if not resume:
-            load_track(cfg.track)
-        run_dir = out or Path("runs") / f"{cfg.env}-{cfg.policy}-{Path(cfg.track).stem}-s{cfg.seed}"
-        refuse_other_files(run_dir, (), force or resume or (run_dir / "config.toml").exists())
-        extend = steps if resume else None  # a resume keeps the run's length unless --steps
-        code = run_training(cfg, run_dir, ConsoleReporter(stderr=True), resume, extend, wandb)
-    except KeyboardInterrupt as exc:  # before training began: nothing to save yet
-        interrupted_exit(exc, "stopped before training began; the run directory is as it was")
-    except (CheckpointWriteError, OSError) as exc:
-        fail(_write_failure(exc, run_dir))
-    except SnnkartError as exc:
-        fail(str(exc))
-    raise typer.Exit(code)
-
-
-def _bc_overrides(data: Path | None, epochs: int | None) -> dict[str, object]:
-    """The ``bc`` config keys that ``--pretrain-bc`` and ``--bc-epochs`` set."""
-    if data is None and epochs is not None:
-        fail("--bc-epochs needs --pretrain-bc DATA.npz")
-    return {} if data is None else {"bc.data": str(data), "bc.epochs": epochs}
-
-
-def _write_failure(exc: Exception, run_dir: Path) -> str:
-    """A failed write during training: what failed, and what of the run is still good."""
-    from snnkart.rl.checkpoint import CheckpointError, load_checkpoint
-
-    if isinstance(exc, OSError):
-        what = f"cannot write {exc.filename or 'to ' + str(run_dir)}: {exc.strerror or exc}"
-    else:
-        what = str(exc)
-    try:
-        _, meta = load_checkpoint(run_dir / "checkpoint.pt")
-        kept = (
-            f"the last good checkpoint ({run_dir / 'checkpoint.pt'}, step "
-            f"{meta.get('global_step', 0):,}) is intact"
-        )
-    except CheckpointError:
-        kept = "no checkpoint had been written yet"
-    return (
-        f"{what}; {kept}. Free space or make {run_dir} writable, then continue with: "
-        f"snnkart train --resume --out {run_dir}"
-    )
+app.command()(train)  # here: the help lists the commands in this order
 
 
 CHECKPOINT_HELP = "latest (default), best (needs eval.every_steps), an env step or a file"

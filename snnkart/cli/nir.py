@@ -57,15 +57,24 @@ def info(
         typer.echo(json.dumps({**facts.as_dict(), "notes": notes}, indent=2))
         return
     neuron = facts.parameter_count - facts.weight_count
-    typer.echo(f"{graph}: {len(facts.nodes)} nodes, {len(facts.edges)} edges, "
-               f"{facts.parameter_count:,} parameters ({facts.weight_count:,} weights and biases "
-               f"+ {neuron:,} neuron parameters)")  # fmt: skip
+    typer.echo(
+        f"{graph}: {len(facts.nodes)} nodes, {len(facts.edges)} edges, "
+        f"{facts.parameter_count:,} parameters ({facts.weight_count:,} weights and biases "
+        f"+ {neuron:,} neuron parameters)"
+    )
     for node in facts.nodes:
         shapes = f"in {node.input_shape} out {node.output_shape}"
         typer.echo(f"  {node.name}: {node.kind} ({shapes})")
         for key, value in node.parameters.items():
             typer.echo(f"      {key} {value}")
     typer.echo("  edges: " + ", ".join(f"{a} -> {b}" for a, b in facts.edges))
+    for cycle in facts.recurrence:
+        typer.echo(f"  cycle: {cycle}")
+    if facts.normalisation is not None:
+        typer.echo(
+            f"  {facts.normalisation}: the observation's normalisation (a diagonal Affine: the "
+            "graph takes raw observations); the host applies it, so it is not counted above"
+        )
     if facts.dt is None:
         typer.echo(f"dt: none ({facts.dt_source}); pass --dt to see the decays it implies")
     else:
@@ -157,8 +166,10 @@ def _run(graph: Path, input_file: Path, options: tuple[Any, ...], defaulted: boo
 
 
 def _show(summary: dict[str, Any]) -> None:
-    typer.echo(f"{summary['graph']} on {summary['backend']} ({summary['arithmetic']}), "
-               f"{summary['steps']} steps; spikes per layer: {summary['spikes']}")  # fmt: skip
+    typer.echo(
+        f"{summary['graph']} on {summary['backend']} ({summary['arithmetic']}), "
+        f"{summary['steps']} steps; spikes per layer: {summary['spikes']}"
+    )
     for c in summary["checks"]:
         verdict = "bit-exact" if c["bit_exact"] else f"flipped spikes {c['flips']}"
         typer.echo(f"  against {c['b']}: {verdict} ({c['spikes_a']} vs {c['spikes_b']} spikes)")
@@ -194,8 +205,17 @@ def manifest(
 
     out = guard(
         lambda: write_manifest(
-            graph, env, track, encoding, readout, dt, discretisation or "euler", num_steps,
-            action_mode, population, force,
+            graph,
+            env,
+            track,
+            encoding,
+            readout,
+            dt,
+            discretisation or "euler",
+            num_steps,
+            action_mode,
+            population,
+            force,
         )
-    )  # fmt: skip
+    )
     typer.echo(f"wrote {out}; run it with: snnkart deploy {graph} --backend nir-ref")

@@ -11,6 +11,15 @@ import typer
 from snnkart.cli.console import ConsoleReporter, print_headline, print_sd_answer
 from snnkart.cli.guard import ForceOpt, guard, refuse_other_files
 
+ControlHzOpt = Annotated[
+    float | None,
+    typer.Option(
+        "--control-hz",
+        help="decisions per second, for static power and average power (default: the env's "
+        "own rate: 60 Hz for the kart envs, a gymnasium env's render_fps)",
+    ),
+]
+
 
 def report(
     deploy_dir: Annotated[Path, typer.Argument(help="a deployment: the --out of snnkart deploy")],
@@ -47,6 +56,7 @@ def report(
             "check the goal there too (a LIF deployment runs SANA-FE whenever it is installed)",
         ),
     ] = False,
+    control_hz: ControlHzOpt = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="directory (default: the deployment's)")
     ] = None,
@@ -63,7 +73,7 @@ def report(
     reporter = ConsoleReporter()
     record = guard(
         lambda: run_report(
-            deploy_dir, ann, profile, out, reporter, host_profile, sweep, step, sanafe
+            deploy_dir, ann, profile, out, reporter, host_profile, sweep, step, sanafe, control_hz
         )
     )
     _print(record)
@@ -75,7 +85,7 @@ def _print(record: dict[str, object]) -> None:
 
     if record.get("kind") == "sigma-delta":
         from snnkart.report.first_screen import sd_sentence
-        from snnkart.report.sd_document import chip_rows
+        from snnkart.report.sigma_delta_document import chip_rows
 
         print_sd_answer(record, sd_sentence(record), chip_rows(record))
     else:

@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from snnkart.backends.defaults import precision_help
 from snnkart.cli.guard import guard
 
 ros_app = typer.Typer(
@@ -68,7 +69,7 @@ def sim(
 def drive(
     policy: Annotated[Path, typer.Argument(help="a gazebo run (torch) or its policy.nir")],
     backend: Annotated[str, typer.Option(help="torch, nir-ref or lava-sim")] = "torch",
-    precision: Annotated[str, typer.Option(help="nir-ref/lava-sim arithmetic")] = "fixed",
+    precision: Annotated[str, typer.Option(help=precision_help())] = "fixed",
     lock_step: LockOpt = True,
     timeout: Annotated[
         float, typer.Option(help="stop the robot when scans or odometry are this old, s")

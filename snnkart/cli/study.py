@@ -28,8 +28,18 @@ def study(
     run, and write OUT/study.json, OUT/study.md and OUT/plots/. Run a long study in pieces with
     --only; the same command without it gathers every piece, reusing their runs."""
     from snnkart.app.study_run import load_study, run_study
+    from snnkart.app.zoo_study import load_zoo_config, run_zoo_study
     from snnkart.cli.console import ConsoleReporter
     from snnkart.report.study_record import StudyRecord
+
+    zoo = guard(lambda: load_zoo_config(config))
+    if zoo is not None:  # one gymnasium task against SB3 with the RL Zoo's settings
+        guard(
+            lambda: run_zoo_study(zoo, out, ConsoleReporter()),
+            "every finished run is kept; run the same command to resume",
+        )
+        typer.echo((out / "zoo-study.md").read_text())
+        return
 
     def run() -> StudyRecord:
         return run_study(load_study(config), out, ConsoleReporter(), jobs, ray, only)
@@ -37,5 +47,7 @@ def study(
     record = guard(run, "every run saved its checkpoint; run the same command to resume")
     typer.echo((out / "study.md").read_text())
     w = record.wall_clock
-    typer.echo(f"{w.runs} runs ({w.runs_reused} reused) in "
-               f"{(w.train_seconds + w.eval_seconds) / 60:.1f} min; results in {out}")  # fmt: skip
+    typer.echo(
+        f"{w.runs} runs ({w.runs_reused} reused) in "
+        f"{(w.train_seconds + w.eval_seconds) / 60:.1f} min; results in {out}"
+    )

@@ -39,13 +39,17 @@ def sweep(
     from snnkart.rl.config import load_config, parse_override
 
     def run() -> dict:
-        base = load_config(overrides={"env": env, "policy": policy, "track": track,
-                                      "total_steps": steps}, sets=set_)  # fmt: skip
+        base = load_config(
+            overrides={"env": env, "policy": policy, "track": track, "total_steps": steps},
+            sets=set_,
+        )
         points = [dict(parse_override(kv) for kv in p.split(",")) for p in point or []]
         return run_sweep(base, param, out, samples, points, grace, address, cpus)
 
     record = guard(run, "Ray stopped the trials; each run directory keeps its last checkpoint")
     best = record["best"]
     stopped = sum(t["stopped_early"] for t in record["trials"])
-    typer.echo(f"{len(record['trials'])} trials, {stopped} stopped early by ASHA; best: "
-               f"{best['settings'] if best else 'none'}; results in {out / 'sweep.json'}")  # fmt: skip
+    typer.echo(
+        f"{len(record['trials'])} trials, {stopped} stopped early by ASHA; best: "
+        f"{best['settings'] if best else 'none'}; results in {out / 'sweep.json'}"
+    )

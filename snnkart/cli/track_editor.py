@@ -28,10 +28,17 @@ HELP = (
     "W wall  C checkpoint  S spawn  M move  Del delete  G grid  Ctrl+Z undo  Ctrl+S save  Esc quit"
 )
 COLOURS = {
-    "bg": (24, 26, 30), "grid": (44, 48, 54), "wall": (220, 220, 220), "open": (255, 200, 60),
-    "cp": (80, 150, 255), "finish": (255, 80, 80), "spawn": (90, 220, 120), "ok": (90, 220, 120),
-    "error": (255, 110, 110), "text": (200, 200, 200),
-}  # fmt: skip
+    "bg": (24, 26, 30),
+    "grid": (44, 48, 54),
+    "wall": (220, 220, 220),
+    "open": (255, 200, 60),
+    "cp": (80, 150, 255),
+    "finish": (255, 80, 80),
+    "spawn": (90, 220, 120),
+    "ok": (90, 220, 120),
+    "error": (255, 110, 110),
+    "text": (200, 200, 200),
+}
 
 
 class EditorWindow:

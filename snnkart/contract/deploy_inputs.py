@@ -128,10 +128,16 @@ class DeployInputs:
                 sizes = tuple(int(x) for x in f["sizes"])
                 raster = np.unpackbits(f["raster"], axis=-1, count=sum(sizes)).astype(bool)
                 return cls(
-                    current=f["current"], raster=raster, episode_starts=f["episode_starts"],
-                    sizes=sizes, num_steps=t, depth=depth,
-                    first_seed=seed, arithmetic=str(f["arithmetic"]), backend=str(f["backend"]),
-                )  # fmt: skip
+                    current=f["current"],
+                    raster=raster,
+                    episode_starts=f["episode_starts"],
+                    sizes=sizes,
+                    num_steps=t,
+                    depth=depth,
+                    first_seed=seed,
+                    arithmetic=str(f["arithmetic"]),
+                    backend=str(f["backend"]),
+                )
         except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
             if isinstance(exc, InputsError):
                 raise

@@ -5,16 +5,21 @@ Versioned by the rule in :mod:`snnkart.contract.records`."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from snnkart.contract.eval_record import EpisodeResult, EvalSummary
-from snnkart.contract.manifest import LayerSpec
+from snnkart.contract.manifest import LayerSpec, Manifest
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind
 
-DEPLOY = RecordKind("deploy", 2, rerun="snnkart deploy")
-"""v2 adds ``counts.sigma_delta`` (a sigma-delta policy's counts); v1 files load."""
+DEPLOY = RecordKind("deploy", 4, rerun="snnkart deploy")
+"""v2 adds ``counts.sigma_delta`` (a sigma-delta policy's counts); v1 files load. v3 (issue
+45): any gymnasium env (no track keys), the summary's ``risk``, ``reward_threshold`` and
+``solved`` (:class:`~snnkart.contract.eval_record.EvalSummary`); v2 files load. v4: the env's
+control rate ``env.control_hz`` (a kart env's 60 Hz, a gymnasium env's ``render_fps``); v3 files
+load without it."""
 DEPLOY_SCHEMA = DEPLOY.tag
 SCHEMA_FILE = Path(__file__).with_name("deploy.schema.json")
 COUNTS_NOTE = (
@@ -26,7 +31,7 @@ SIGMA_DELTA_COUNTS_NOTE = (
     "sigma-delta policy: per sending layer (input Delta = host encoder, each SigmaDelta, "
     "readout Sigma) spikes = messages, synops = synaptic_events, neuron_updates = "
     "updates_clocked over all rows_per_env_step Lava steps (the held schedule); counts.sigma_delta "
-    "names every count (snnkart.backends.sdnn_counts); no pipeline overhead is split off"
+    "names every count (snnkart.backends.sigma_delta_counts); no pipeline overhead is split off"
 )
 
 
@@ -40,6 +45,11 @@ class ManifestSummary:
     layers: tuple[LayerSpec, ...] = ()
     action_mode: str = "discrete"
     training: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, manifest: Manifest) -> ManifestSummary:
+        """The manifest's fields of these names."""
+        return cls(**{f.name: getattr(manifest, f.name) for f in dataclasses.fields(cls)})
 
 
 @dataclass(frozen=True)
@@ -60,7 +70,7 @@ class EnvRecord:
     of early v1 deployments name only ``env`` and ``track``)."""
 
     env: str
-    track: str
+    track: str | None = field(default=None, metadata=OMIT_NONE)  # None: a gymnasium env
     track_given: str | None = field(default=None, metadata=OMIT_NONE)
     track_source: str | None = field(default=None, metadata=OMIT_NONE)
     track_sha256: str | None = field(default=None, metadata=OMIT_NONE)
@@ -68,6 +78,7 @@ class EnvRecord:
     track_override: bool | None = field(default=None, metadata=OMIT_NONE)
     track_label: str | None = field(default=None, metadata=OMIT_NONE)
     action_mode: str | None = field(default=None, metadata=OMIT_NONE)
+    control_hz: float | None = field(default=None, metadata=OMIT_NONE)  # v4: decisions per s
 
 
 @dataclass(frozen=True)
@@ -83,7 +94,7 @@ class OverheadCounts:
 class SigmaDeltaCounts:
     """A sigma-delta policy's counts, per sending layer (``layers``: ``input`` = the host's
     Delta encoder, each SigmaDelta's node, the readout Sigma's node), summed over env steps of
-    ``rows_per_env_step`` Lava steps each; defined in :mod:`snnkart.backends.sdnn_counts`."""
+    ``rows_per_env_step`` Lava steps each; defined in :mod:`snnkart.backends.sigma_delta_counts`."""
 
     layers: list[str]
     rows_per_env_step: int
@@ -99,14 +110,18 @@ class SigmaDeltaCounts:
     def minus(self, before: SigmaDeltaCounts) -> SigmaDeltaCounts:
         """The counts since ``before``."""
         lists = ("messages", "payload_bits", "synaptic_events", "updates_clocked", "updates_active")
-        diff = {k: [a - b for a, b in zip(getattr(self, k), getattr(before, k), strict=True)]
-                for k in lists}  # fmt: skip
+        diff = {
+            k: [a - b for a, b in zip(getattr(self, k), getattr(before, k), strict=True)]
+            for k in lists
+        }
         return SigmaDeltaCounts(
-            layers=self.layers, rows_per_env_step=self.rows_per_env_step,
-            num_message_bits=self.num_message_bits, **diff,
+            layers=self.layers,
+            rows_per_env_step=self.rows_per_env_step,
+            num_message_bits=self.num_message_bits,
+            **diff,
             host_to_chip_bits=self.host_to_chip_bits - before.host_to_chip_bits,
             chip_to_host_bits=self.chip_to_host_bits - before.chip_to_host_bits,
-        )  # fmt: skip
+        )
 
 
 @dataclass(frozen=True)
@@ -129,14 +144,22 @@ class Counts:
         now, was = self.pipeline_overhead, before.pipeline_overhead
         overhead = None
         if now is not None and was is not None:
-            overhead = OverheadCounts(sub(now.spikes, was.spikes), sub(now.synops, was.synops),
-                                      sub(now.neuron_updates, was.neuron_updates))  # fmt: skip
+            overhead = OverheadCounts(
+                sub(now.spikes, was.spikes),
+                sub(now.synops, was.synops),
+                sub(now.neuron_updates, was.neuron_updates),
+            )
         sd = None
         if self.sigma_delta is not None and before.sigma_delta is not None:
             sd = self.sigma_delta.minus(before.sigma_delta)
-        return Counts(self.env_steps - before.env_steps, sub(self.spikes, before.spikes),
-                      sub(self.synops, before.synops),
-                      sub(self.neuron_updates, before.neuron_updates), overhead, sd)  # fmt: skip
+        return Counts(
+            self.env_steps - before.env_steps,
+            sub(self.spikes, before.spikes),
+            sub(self.synops, before.synops),
+            sub(self.neuron_updates, before.neuron_updates),
+            overhead,
+            sd,
+        )
 
 
 @dataclass(frozen=True)
@@ -195,7 +218,7 @@ class DeployedEpisode(EpisodeResult):
 
 @dataclass(frozen=True)
 class DeployRecord(Record):
-    """``deploy.json`` (``snnkart/deploy/v2``)."""
+    """``deploy.json`` (``snnkart/deploy/v4``)."""
 
     KIND = DEPLOY
 

@@ -157,6 +157,31 @@ class BreakEven(DensityBreakEven):
     width: WidthBreakEven
 
 
+class BudgetBreakEven(TypedDict):
+    """A sigma-delta deployment's message density (relative to today's) at which an inference
+    costs ``budget_pj`` (None where no sparsity reaches it, with the reason)."""
+
+    budget_pj: float
+    fixed_pj: float
+    per_density_pj: float
+    density: float | None
+    reason: str
+
+
+class ScheduleWhatIfs(TypedDict):
+    """A sigma-delta deployment's energy per inference as priced and under each other schedule
+    (held, or one Lava step per env step) and neuron-update rule (clocked or active)."""
+
+    rule: dict[str, str]
+    rows: int
+    as_priced_pj: float
+    held_clocked_pj: float
+    held_active_pj: float
+    one_step_clocked_pj: float
+    clocked_updates: dict[str, float]
+    note: str
+
+
 # -- issue 34's goal (snnkart.energy.goal) -----------------------------------------------------
 
 

@@ -18,14 +18,21 @@ from snnkart.contract.sigma_delta import SigmaDeltaBlock
 from snnkart.errors import ManifestError
 from snnkart.io import atomic_path
 
-MANIFEST_SCHEMA = "snnkart/manifest/v3"
+MANIFEST_SCHEMA = "snnkart/manifest/v4"
 SCHEMA_FILE = Path(__file__).with_name("manifest.schema.json")
 """The JSON Schema of a v2 manifest (for other tools; this module validates in ``__post_init__``)."""
-"""v3 adds ``state_persists`` (membranes carry across env steps: a stateful LIF policy) and
-``sigma_delta`` (a sigma-delta policy, :mod:`snnkart.contract.sigma_delta`); v2 manifests load
+"""v4 adds ``obs_node``: the graph takes the raw observation, its first node (an Affine of
+weight ``diag(1 / obs_std)`` and bias ``-obs_mean / obs_std``) normalises it; v3 and older
+graphs take the normalised observation. v3 adds ``state_persists`` (membranes carry across
+env steps: a stateful LIF policy) and ``sigma_delta`` (a sigma-delta policy, :mod:`snnkart.contract.sigma_delta`); v2 manifests load
 with neither. v2 embeds the track (``track``: name, the path as given, hash, TOML); v1 manifests
 still load, and their env is rebuilt from the track's name in ``env``, which must then exist."""
-READABLE_SCHEMAS = ("snnkart/manifest/v1", "snnkart/manifest/v2", MANIFEST_SCHEMA)
+READABLE_SCHEMAS = (
+    "snnkart/manifest/v1",
+    "snnkart/manifest/v2",
+    "snnkart/manifest/v3",
+    MANIFEST_SCHEMA,
+)
 ENCODINGS = ("current", "rate", "population", "delta")
 ACTION_MODES = ("discrete", "continuous")
 
@@ -68,6 +75,8 @@ class Manifest:
     state_persists: bool = False  # v3: no reset per env step, the state carries on, zeroed
     # at an episode's start (docs/stateful.md)
     sigma_delta: SigmaDeltaBlock | None = None  # v3: a sigma-delta policy (layers is empty)
+    obs_node: str | None = None  # v4: the graph's normalisation node (the graph takes the raw
+    # observation); the host applies it as the normalisation above, clip included
 
     def __post_init__(self) -> None:
         """A manifest is valid from construction on, however it was made."""
@@ -75,7 +84,8 @@ class Manifest:
             raise ManifestError(
                 f"schema {self.schema!r} is not one of {', '.join(map(repr, READABLE_SCHEMAS))}"
             )
-        if self.schema != READABLE_SCHEMAS[0] and not isinstance(self.track, dict):
+        gym = self.env.get("kind") == "gymnasium"  # any gymnasium env: no track
+        if self.schema != READABLE_SCHEMAS[0] and not gym and not isinstance(self.track, dict):
             raise ManifestError(f"a {MANIFEST_SCHEMA} manifest embeds its track")
         if self.encoding not in ENCODINGS:
             raise ManifestError(f"unknown encoding {self.encoding!r}; choose one of {ENCODINGS}")

@@ -134,8 +134,10 @@ class Reading:
     version: int
 
     def error(self, where: str, problem: str) -> RecordError:
-        return RecordError(f"{self.source}: {where.rstrip('.') or 'the record'} {problem} in a "
-                           f"{self.kind.tag_of(self.version)} record")  # fmt: skip
+        return RecordError(
+            f"{self.source}: {where.rstrip('.') or 'the record'} {problem} in a "
+            f"{self.kind.tag_of(self.version)} record"
+        )
 
 
 def from_data(cls: type[R], data: object, reading: Reading, where: str = "") -> R:
@@ -153,6 +155,8 @@ def from_data(cls: type[R], data: object, reading: Reading, where: str = "") -> 
     for name, f in fields.items():
         if name in data:
             values[f.name] = _convert(hints[f.name], data[name], reading, f"{where}{name}.")
+        elif f.metadata.get("omit_none") or f.metadata.get("omit_if"):
+            values[f.name] = None  # a key left out when None (or for some records): None
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
             raise reading.kind.older(reading.source, reading.version)
     return cls(**values)
@@ -218,8 +222,9 @@ class Record:
         try:
             text = Path(path).read_text()
         except OSError as exc:
-            raise RecordError(f"cannot read {path}: {exc.strerror or exc}; run "
-                              f"`{cls.KIND.rerun}` first") from exc  # fmt: skip
+            raise RecordError(
+                f"cannot read {path}: {exc.strerror or exc}; run `{cls.KIND.rerun}` first"
+            ) from exc
         return cls.from_json(text, str(path))
 
 
@@ -231,8 +236,12 @@ def json_schema(cls: type, kind: RecordKind | None = None) -> dict[str, object]:
     properties = body["properties"]
     if isinstance(properties, dict) and "schema" in properties:
         properties["schema"] = {"const": kind.tag}
-    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "$id": kind.tag,
-            "title": f"snnkart {kind.name} record ({kind.name}.json)", **body}  # fmt: skip
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": kind.tag,
+        "title": f"snnkart {kind.name} record ({kind.name}.json)",
+        **body,
+    }
 
 
 def _schema(tp: Any) -> dict[str, object]:
@@ -253,8 +262,13 @@ def _schema(tp: Any) -> dict[str, object]:
         doc = " ".join((tp.__doc__ or "").split())
         auto = doc.startswith(f"{getattr(tp, '__name__', '')}(")  # dataclass's own
         described = {"description": doc} if doc and not auto else {}
-        return {**described, "type": "object", "properties": props, "required": required,
-                "additionalProperties": False}  # fmt: skip
+        return {
+            **described,
+            "type": "object",
+            "properties": props,
+            "required": required,
+            "additionalProperties": False,
+        }
     if origin in (typing.Union, types.UnionType):
         return {"anyOf": [_schema(a) for a in args]}
     if origin in (list, tuple):

@@ -1,4 +1,4 @@
-"""``report.json`` (schema ``snnkart/report/v3``, ``snnkart/report/report.schema.json``) as
+"""``report.json`` (schema ``snnkart/report/v4``, ``snnkart/report/report.schema.json``) as
 typed dicts: a LIF deployment's report (:class:`LifReport`) with its sections, and what the
 readers use of a sigma-delta deployment's (:class:`SdReport`).
 
@@ -11,8 +11,10 @@ mapping; :func:`lif_report` and :func:`sd_report` read one as the record it is.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Literal, TypedDict, cast
 
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.energy_record import (
     BreakEven,
     Goal,
@@ -20,6 +22,7 @@ from snnkart.contract.energy_record import (
     ProfileRecord,
     SamplingMethod,
 )
+from snnkart.contract.records import to_data
 from snnkart.contract.sanafe_record import SanafeSection
 
 # -- the deployment and the task ---------------------------------------------------------------
@@ -33,7 +36,7 @@ class DeploySection(TypedDict):
     precision: str
     nir_file: str
     env: str
-    track: str
+    track: str | None  # None: a gymnasium env
     track_given: str | None
     track_source: str | None
     episodes: int
@@ -42,10 +45,32 @@ class DeploySection(TypedDict):
     parity: dict[str, object] | None
 
 
-class Task(TypedDict):
-    """A policy's task on the deployment's episodes (``$defs/task``)."""
+def deploy_section(
+    record: DeployRecord, deploy_dir: Path, episodes: int, env_steps: int
+) -> DeploySection:
+    """A report's ``deploy``: the deployment in ``deploy_dir`` (``record``), its env and track,
+    its parity, and the episodes and env steps its counts are over."""
+    return {
+        "file": str(deploy_dir),
+        "backend": record.backend,
+        "precision": record.precision,
+        "nir_file": record.nir_file,
+        "env": record.env.env,
+        "track": record.env.track,
+        "track_given": record.env.track_given,
+        "track_source": record.env.track_source,
+        "episodes": episodes,
+        "env_steps": env_steps,
+        "first_seed": record.first_seed,
+        "parity": to_data(record.parity),
+    }
 
-    success_rate: float
+
+class Task(TypedDict):
+    """A policy's task on the deployment's episodes (``$defs/task``); ``success_rate`` None: a
+    gymnasium env without a ``reward_threshold`` (nothing to judge)."""
+
+    success_rate: float | None
     mean_lap_time: float | None
     mean_return: float
     episodes: int
@@ -305,10 +330,22 @@ class StateNote(TypedDict):
     note: str
 
 
+Control = TypedDict(  # "from" is a keyword: the functional form
+    "Control",
+    {
+        "period_s": float,  # one inference per env step, every period_s seconds
+        "from": str,  # --control-hz, a kart env's 60 Hz, or a gymnasium env's render_fps
+        "pass_mark": str,  # what counts as a successful episode
+    },
+)
+"""The report's control period and the task's pass mark (report v4)."""
+
+
 class _LifReport(TypedDict):
     schema: str
     deploy: DeploySection
-    drives: bool
+    drives: bool | None  # None: the env has no pass mark
+    control: Control
     network: NetworkSection
     snn: SnnSection
     ann: dict[str, AnnSection]  # same_width, and run when an ANN run was given
@@ -333,7 +370,7 @@ class _SdReport(TypedDict):
     schema: str
     kind: Literal["sigma-delta"]
     deploy: DeploySection
-    drives: bool
+    drives: bool | None
     network: Mapping[str, object]
     task: Task
     sigma_delta: Mapping[str, object]
@@ -349,7 +386,7 @@ class _SdReport(TypedDict):
 
 class SdReport(_SdReport, total=False):
     """A sigma-delta deployment's report (``kind: "sigma-delta"``, written by
-    :mod:`snnkart.app.report_sd`): the sections its readers use typed, the rest as written;
+    :mod:`snnkart.app.report_sigma_delta`): the sections its readers use typed, the rest as written;
     ``figures`` once written."""
 
     figures: list[str]

@@ -38,8 +38,8 @@ class SanafeVersus(TypedDict):
 
 
 class SanafeSpikes(TypedDict):
-    deploy_json: list[float]
-    inputs_npz: list[float]
+    deploy_json: list[int]
+    inputs_npz: list[int]
     replayed_by_sanafe: list[float]
     sanafe_lif_replay: list[float]
 

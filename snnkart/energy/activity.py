@@ -2,7 +2,7 @@
 routine (:func:`snnkart.energy.pricing.terms`).
 
 A family's counts (:class:`~snnkart.energy.counts.SnnCounts` for LIF chains,
-:class:`~snnkart.energy.sd_counts.SigmaDeltaCounts` for sigma-delta ones,
+:class:`~snnkart.energy.sigma_delta_counts.SigmaDeltaCounts` for sigma-delta ones,
 :class:`~snnkart.energy.counts.AnnCounts` for an ANN, which has no chip) report their activity
 as typed items: on the chip, :class:`Activity` (a count of one chip operation, with the part of
 the energy it belongs to and what it is), and on the host, the digital operations

@@ -20,11 +20,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
-from typing import cast
 
 from snnkart.contract.energy_record import (
     BreakEven,
-    DensityBreakEven,
     StepsBreakEven,
     WidthBreakEven,
     WidthSpan,
@@ -39,8 +37,9 @@ WIDTHS = tuple(sorted({*range(1, 17), *(round(16 * 1.25**k) for k in range(1, 38
 each change of sign is then solved to the neuron by bisection."""
 
 
-def rescaled(counts: SnnCounts, num_steps: int | None = None,
-             sizes: Sequence[int] | None = None) -> SnnCounts:  # fmt: skip
+def rescaled(
+    counts: SnnCounts, num_steps: int | None = None, sizes: Sequence[int] | None = None
+) -> SnnCounts:
     """The same policy at ``num_steps`` SNN steps and ``sizes`` neurons per layer, at today's
     firing rates (the module's scaling laws); the host work (if counted) recounted for the new
     shape, in fixed point if it was."""
@@ -185,12 +184,14 @@ def _width_reason(cheaper: list[list[int | None]], grid: list[int], limit: float
             f"no width from {grid[0]} to {grid[-1]} breaks even at today's firing rates (at "
             f"{grid[-1]} the SNN costs {_times(limit)} the ANN)"
         )
-    spans = [f"from {a} to {b}" if b is not None else f"from {a} up (checked to {grid[-1]})"
-             for a, b in cheaper]  # fmt: skip
+    spans = [
+        f"from {a} to {b}" if b is not None else f"from {a} up (checked to {grid[-1]})"
+        for a, b in cheaper
+    ]
     return "the SNN costs less than the ANN at widths " + " and ".join(spans)
 
 
 def break_even(cmp: Comparison) -> BreakEven:
     """The break-even in spike density (:meth:`Comparison.break_even`), in T and in width."""
-    density = cast(DensityBreakEven, cmp.break_even())  # the record Comparison.break_even writes
+    density = cmp.break_even()
     return {**density, "num_steps": break_even_steps(cmp), "width": break_even_width(cmp)}

@@ -23,8 +23,10 @@ from dataclasses import dataclass, field
 from snnkart.contract.deploy_record import Counts, DeployRecord, StepCounts
 from snnkart.contract.link import link_bits
 from snnkart.energy.activity import Activity, HostOp
+from snnkart.energy.network import Network, host_ops
 from snnkart.energy.placement import Placement
 from snnkart.energy.profiles import Profile
+from snnkart.envs.constants import DT
 from snnkart.errors import ReportError
 
 
@@ -33,125 +35,6 @@ def placement(sizes: tuple[int, ...], chip: Profile) -> Placement | None:
     if not chip.neurons_per_core:
         return None
     return Placement.of(sizes, chip.neurons_per_core, chip.cores_per_tile)
-
-
-@dataclass(frozen=True)
-class Network:
-    """The deployed network's shape: inputs, spiking layer sizes, outputs, T."""
-
-    n_in: int
-    sizes: tuple[int, ...]
-    n_out: int
-    num_steps: int
-    encoding: str = "current"
-    population: int = 0
-    """Population encoding: receptive fields per observation value (``n_in`` is their sum)."""
-    readout: bool = True
-    input_scale: bool = False
-    action_mode: str = "discrete"
-
-    @classmethod
-    def of_deploy(cls, record: DeployRecord) -> Network:
-        """The network a deployment ran: its shape, T, encoding and action decoding."""
-        net, manifest = record.network, record.manifest
-        return cls(
-            n_in=net.n_in,
-            sizes=tuple(net.sizes),
-            n_out=net.n_out,
-            num_steps=manifest.num_steps,
-            encoding=manifest.encoding,
-            population=manifest.population or 0,
-            readout=net.readout,
-            input_scale=net.input_scale,
-            action_mode=manifest.action_mode,
-        )
-
-    def __post_init__(self) -> None:
-        if (self.encoding == "population") != (self.population > 0):
-            raise ReportError(
-                f"a {self.encoding} encoding with population {self.population}: the deploy "
-                "record is inconsistent (written by an older snnkart?); run snnkart deploy again"
-            )
-
-    @property
-    def obs_dim(self) -> int:
-        """Observation values per inference (the graph's inputs, or their receptive fields)."""
-        return self.n_in // self.population if self.population else self.n_in
-
-    @property
-    def depth(self) -> int:
-        """L: Dense delays between the spiking layers."""
-        return len(self.sizes) - 1
-
-    @property
-    def neurons(self) -> int:
-        return sum(self.sizes)
-
-    @property
-    def chip_synapses(self) -> int:
-        return sum(a * b for a, b in zip(self.sizes, self.sizes[1:], strict=False))
-
-    @property
-    def parameters(self) -> int:
-        """Weights and biases: first layer (host), the chip's layers, readout (host)."""
-        return self.host_parameters + self.chip_synapses + sum(self.sizes[1:])
-
-    @property
-    def host_parameters(self) -> int:
-        """The weights and biases the host keeps and reads: the first layer's and the readout's."""
-        n1, last = self.sizes[0], self.sizes[-1]
-        readout = (last * self.n_out + self.n_out) if self.readout else 0
-        return self.n_in * n1 + n1 + readout
-
-
-def host_ops(net: Network, fixed_point: bool = False) -> list[HostOp]:
-    """The SNN's host-side work per inference (per env step)."""
-    n_in, n1, last, n_out, T = net.n_in, net.sizes[0], net.sizes[-1], net.n_out, net.num_steps
-    ops: list[HostOp] = []
-    if net.encoding == "rate":
-        ops += [
-            HostOp("rate encoding: (obs - low) / (high - low), clipped", "add", 3 * n_in),
-            HostOp("rate encoding: (obs - low) / (high - low)", "mult", n_in),
-            HostOp("rate encoding: compare a random number per input and step", "add", T * n_in),
-            HostOp("first layer: input spikes x W1, dense upper bound", "add", T * n_in * n1),
-            HostOp("first layer: bias per step", "add", T * n1),
-            HostOp("first layer: weight reads, dense upper bound", "weight_read", T * (n_in * n1 + n1)),
-        ]  # fmt: skip
-    else:
-        if net.encoding == "population":
-            n_obs = net.obs_dim
-            ops += [
-                HostOp("population encoding: (obs - low) / (high - low), clipped", "add", 3 * n_obs),
-                HostOp("population encoding: (obs - low) / (high - low)", "mult", n_obs),
-                HostOp("population encoding: x01 - centre", "add", n_in),
-                HostOp("population encoding: x (P - 1), square, x -1/2", "mult", 3 * n_in),
-                HostOp("population encoding: exp, priced as one mult (a table lookup)", "mult", n_in),
-            ]  # fmt: skip
-        else:
-            ops += [
-                HostOp("normalisation: obs - mean, clip to +-c", "add", 3 * n_in),
-                HostOp("normalisation: / std", "mult", n_in),
-            ]
-        ops += [
-            HostOp("first layer: W1 z, once per env step", "mac", n_in * n1),
-            HostOp("first layer: + b1", "add", n1),
-            HostOp("first layer: weight and bias reads", "weight_read", n_in * n1 + n1),
-        ]
-        if net.input_scale:
-            ops.append(HostOp("input scale", "mult", n_in))
-    if fixed_point:
-        scaled = T * n1 if net.encoding == "rate" else n1
-        ops.append(HostOp("fixed point: scale the current to integers", "mult", scaled))
-    if net.readout:
-        ops += [
-            HostOp("readout: spike counts / T", "mult", last),
-            HostOp("readout: Wr rates", "mac", n_out * last),
-            HostOp("readout: + br", "add", n_out),
-            HostOp("readout: weight and bias reads", "weight_read", n_out * last + n_out),
-        ]
-    compares = n_out - 1 if net.action_mode == "discrete" else 2 * n_out
-    ops.append(HostOp("decoding: argmax or clip", "add", compares))
-    return ops
 
 
 def _link(net: Network, precision: str) -> tuple[float, float]:
@@ -175,6 +58,9 @@ class SnnCounts:
     host: tuple[HostOp, ...] = field(default=())
     link_bits: tuple[float, float] = (0.0, 0.0)
     """Bits over the host<->chip link per inference, in and out (:mod:`snnkart.contract.link`)."""
+    period_s: float = DT
+    """The control period: one inference per env step (a kart env's 1/60 s; a gymnasium env's
+    1/render_fps, or the report's --control-hz)."""
 
     @classmethod
     def of_deploy(cls, record: DeployRecord) -> SnnCounts:
@@ -217,12 +103,9 @@ class SnnCounts:
     @classmethod
     def of_sweep(cls, run: StepCounts) -> SnnCounts:
         """A study run's counts per env step (``eval_counts_per_step`` in ``study.json``)."""
-        shape = run.network
-        net = Network(
-            n_in=shape.n_in, sizes=tuple(run.sizes), n_out=shape.n_out,
-            num_steps=run.num_steps, encoding=run.encoding, population=run.population or 0,
-            readout=shape.readout, input_scale=shape.input_scale, action_mode=run.action_mode,
-        )  # fmt: skip
+        net = Network.of_shape(
+            run.network, run.sizes, run.num_steps, run.encoding, run.population, run.action_mode
+        )
 
         def chip(values: list[float]) -> tuple[float, ...]:
             return (*values[:-1], 0.0)  # the last layer's fan-out is the host's readout
@@ -248,10 +131,18 @@ class SnnCounts:
             return tuple(density * x for x in v)
 
         return SnnCounts(
-            self.net, self.env_steps, self.episodes, s(self.spikes), s(self.synops),
-            self.neuron_updates, s(self.overhead_spikes), s(self.overhead_synops),
-            self.overhead_neuron_updates, self.host, self.link_bits,
-        )  # fmt: skip
+            self.net,
+            self.env_steps,
+            self.episodes,
+            s(self.spikes),
+            s(self.synops),
+            self.neuron_updates,
+            s(self.overhead_spikes),
+            s(self.overhead_synops),
+            self.overhead_neuron_updates,
+            self.host,
+            self.link_bits,
+        )
 
     @property
     def host_parameters(self) -> int:
@@ -270,17 +161,23 @@ class SnnCounts:
         for i, n in enumerate(self.net.sizes):
             layer = f"layer {i + 1} ({n} neurons)"
             items += [
-                Activity("synaptic ops", f"{layer}: spikes x fan-out", self.synops[i], "synaptic_op"),
-                Activity("neuron updates", f"{layer}: N x T", self.neuron_updates[i], "neuron_update"),
+                Activity(
+                    "synaptic ops", f"{layer}: spikes x fan-out", self.synops[i], "synaptic_op"
+                ),
+                Activity(
+                    "neuron updates", f"{layer}: N x T", self.neuron_updates[i], "neuron_update"
+                ),
                 Activity("spikes", f"{layer}: spikes", self.spikes[i], "spike"),
-            ]  # fmt: skip
+            ]
             if self.overhead_neuron_updates[i] or self.overhead_spikes[i]:
                 fill = f"{layer}: pipeline fill/drain"
                 items += [
                     Activity("synaptic ops", fill, self.overhead_synops[i], "synaptic_op"),
-                    Activity("neuron updates", fill, self.overhead_neuron_updates[i], "neuron_update"),
+                    Activity(
+                        "neuron updates", fill, self.overhead_neuron_updates[i], "neuron_update"
+                    ),
                     Activity("spikes", fill, self.overhead_spikes[i], "spike"),
-                ]  # fmt: skip
+                ]
         return items + self._routing(chip) + self._link(chip)
 
     def _routing(self, chip: Profile) -> list[Activity]:
@@ -290,8 +187,10 @@ class SnnCounts:
         items = []
         for i, hops in enumerate(where.hops_per_spike[:-1]):
             spikes = self.spikes[i] + self.overhead_spikes[i]
-            what = (f"layer {i + 1} -> {i + 2}: spikes x {hops:g} tile hops "
-                    f"({where.cores[i]} -> {where.cores[i + 1]} cores)")  # fmt: skip
+            what = (
+                f"layer {i + 1} -> {i + 2}: spikes x {hops:g} tile hops "
+                f"({where.cores[i]} -> {where.cores[i + 1]} cores)"
+            )
             items.append(Activity("routing", what, spikes * hops, "hop"))
         return items
 
@@ -402,5 +301,8 @@ class AnnCounts:
         return {"effective_macs": self.macs, "effective_acs": 0, "dense_ops": self.macs}
 
     def footprint(self) -> dict[str, int]:
-        return {"parameters": self.parameters, "parameter_bytes_fp32": 4 * self.parameters,
-                "state_variables": 0}  # fmt: skip
+        return {
+            "parameters": self.parameters,
+            "parameter_bytes_fp32": 4 * self.parameters,
+            "state_variables": 0,
+        }

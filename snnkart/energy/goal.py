@@ -37,9 +37,9 @@ from snnkart.contract.energy_record import (
     Spread,
 )
 from snnkart.energy.counts import AnnCounts, SnnCounts
-from snnkart.energy.pricing import CONTROL_PERIOD_S, Term, ann_terms, static_terms, terms, total
+from snnkart.energy.pricing import Term, ann_terms, static_terms, terms, total
 from snnkart.energy.profiles import Profile
-from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sigma_delta_counts import SigmaDeltaCounts
 from snnkart.energy.uncertainty import SAMPLES, SEED, joint
 
 FP32 = "horowitz45_fp32_sram"
@@ -61,6 +61,7 @@ class Priced:
     snn: tuple[Term, ...]
     ann: tuple[Term, ...]
     profiles: tuple[Profile, ...]
+    period_s: float  # the control period its static power is taken over (the policy's)
 
 
 def _nj(x: float | None) -> str:
@@ -73,14 +74,17 @@ def check(p: Priced, factor: float, samples: int = SAMPLES, seed: int = SEED) ->
     j = joint(p.snn, p.ann, p.profiles, samples, seed)
     top = j["ratio"]["p95"]
     return {
-        "chip": p.chip, "baseline": p.baseline, "factor": factor, "ratio": j["ratio"],
-        "snn_pj": j["snn_pj"], "ann_pj": j["ann_pj"],
+        "chip": p.chip,
+        "baseline": p.baseline,
+        "factor": factor,
+        "ratio": j["ratio"],
+        "snn_pj": j["snn_pj"],
+        "ann_pj": j["ann_pj"],
         "holds": top is not None and top <= factor,
-    }  # fmt: skip
+    }
 
 
-def in_the_way(p: Priced, factor: float, samples: int = SAMPLES,
-               seed: int = SEED) -> InTheWay:  # fmt: skip
+def in_the_way(p: Priced, factor: float, samples: int = SAMPLES, seed: int = SEED) -> InTheWay:
     """The part of the policy's energy whose removal alone lowers the ratio's 95th percentile
     most (module docstring), with the numbers."""
     parts = list(dict.fromkeys(t.part for t in p.snn))
@@ -91,8 +95,10 @@ def in_the_way(p: Priced, factor: float, samples: int = SAMPLES,
         without = joint(kept, p.ann, p.profiles, samples, seed)["ratio"]["p95"]
         energy = joint(alone, p.ann, p.profiles, samples, seed)["snn_pj"]
         rows.append({"part": part, "part_pj": energy, "ratio_p95_without": without})
-    best = min(rows, key=lambda r: float("inf") if r["ratio_p95_without"] is None
-               else r["ratio_p95_without"])  # fmt: skip
+    best = min(
+        rows,
+        key=lambda r: float("inf") if r["ratio_p95_without"] is None else r["ratio_p95_without"],
+    )
     now = check(p, factor, samples, seed)
     without = best["ratio_p95_without"]
     clears = without is not None and without <= factor
@@ -105,25 +111,37 @@ def in_the_way(p: Priced, factor: float, samples: int = SAMPLES,
         f"{'-' if without is None else f'{without:.3g}x'} (needs <= {factor:g}x"
         f"{'' if clears else '; removing it alone is not enough'})"
     )
-    return {**best, "chip": p.chip, "baseline": p.baseline, "factor": factor,
-            "ratio_p95": now["ratio"]["p95"], "clears": clears, "text": text}  # fmt: skip
+    return {
+        **best,
+        "chip": p.chip,
+        "baseline": p.baseline,
+        "factor": factor,
+        "ratio_p95": now["ratio"]["p95"],
+        "clears": clears,
+        "text": text,
+    }
 
 
-def sanafe_check(snn_pj: float, ann_pj: Spread, baseline: str,
-                 factor: float) -> SanafeCheck:  # fmt: skip
+def sanafe_check(snn_pj: float, ann_pj: Spread, baseline: str, factor: float) -> SanafeCheck:
     """One bound on SANA-FE's single energy ``snn_pj`` against the baseline's spread
     ``ann_pj`` (median, p05, p95): it holds when ``snn_pj <= factor x p05``."""
     low = ann_pj["p05"]
-    return {"chip": "sanafe", "baseline": baseline, "factor": factor, "snn_pj": snn_pj,
-            "ann_pj": ann_pj, "ratio_p95": snn_pj / low if low else None,
-            "holds": low is not None and snn_pj <= factor * low}  # fmt: skip
+    return {
+        "chip": "sanafe",
+        "baseline": baseline,
+        "factor": factor,
+        "snn_pj": snn_pj,
+        "ann_pj": ann_pj,
+        "ratio_p95": snn_pj / low if low else None,
+        "holds": low is not None and snn_pj <= factor * low,
+    }
 
 
 def _static(p: Priced, chip: str) -> float | None:
     """Beside the dynamic verdict: the chip's static power over one control period (pJ), or
     None where the profile publishes none."""
     profile = next(x for x in p.profiles if x.name == chip)
-    terms = static_terms(profile, CONTROL_PERIOD_S, "chip")
+    terms = static_terms(profile, p.period_s, "chip")
     return total(terms) if terms else None
 
 
@@ -135,19 +153,27 @@ def _chip(priced: Sequence[Priced], chip: str, samples: int, seed: int) -> ChipG
             f"the goal on {chip} needs the policy priced against {missing[0]}; price it there"
         )
     checks = [check(by[b], f, samples, seed) for b, f in BOUNDS]
-    out: ChipGoal = {"chip": chip, "holds": all(c["holds"] for c in checks),
-                     "checks": checks, "in_the_way": None,
-                     "static_pj": _static(by[BOUNDS[0][0]], chip)}  # fmt: skip
+    out: ChipGoal = {
+        "chip": chip,
+        "holds": all(c["holds"] for c in checks),
+        "checks": checks,
+        "in_the_way": None,
+        "static_pj": _static(by[BOUNDS[0][0]], chip),
+    }
     if not out["holds"]:
         worst = max(checks, key=lambda c: (c["ratio"]["p95"] or float("inf")) / c["factor"])
         out["in_the_way"] = in_the_way(by[worst["baseline"]], worst["factor"], samples, seed)
     return out
 
 
-def decide(priced: Sequence[Priced], sanafe_pj: float | Mapping[str, float] | None = None,
-           primary: str = PRIMARY,
-           proxies: Sequence[str] = PROXIES, samples: int = SAMPLES,
-           seed: int = SEED) -> dict[str, Any]:  # fmt: skip
+def decide(
+    priced: Sequence[Priced],
+    sanafe_pj: float | Mapping[str, float] | None = None,
+    primary: str = PRIMARY,
+    proxies: Sequence[str] = PROXIES,
+    samples: int = SAMPLES,
+    seed: int = SEED,
+) -> dict[str, Any]:
     """The goal's verdict (module docstring) from the policy priced on ``primary`` and each of
     ``proxies`` against both baselines, and SANA-FE's energy per inference where it ran (its
     chip energy plus snnkart's host and link terms: one figure, or one per baseline where the
@@ -165,17 +191,22 @@ def decide(priced: Sequence[Priced], sanafe_pj: float | Mapping[str, float] | No
         "rule": "policy/ANN ratio's 95th percentile <= 0.5 against the memory-inclusive fp32 "
         "ANN and <= 1 against the memory-inclusive int8 ANN (SANA-FE: its energy against the "
         "ANN's 5th percentile)",
-        "primary": main, "proxies": named, "sanafe": sanafe, "holds": holds,
-        "sanafe_run": sanafe is not None, "verdict": _verdict(main, named, sanafe, holds),
-    }  # fmt: skip
-    return dict(goal)  # a plain dict: snnkart.app.report_sd hands it on as one
+        "primary": main,
+        "proxies": named,
+        "sanafe": sanafe,
+        "holds": holds,
+        "sanafe_run": sanafe is not None,
+        "verdict": _verdict(main, named, sanafe, holds),
+    }
+    return dict(goal)  # a plain dict: snnkart.app.report_sigma_delta hands it on as one
 
 
-def _verdict(main: ChipGoal, named: list[ChipGoal], sanafe: SanafeGoal | None,
-             holds: bool) -> str:  # fmt: skip
+def _verdict(main: ChipGoal, named: list[ChipGoal], sanafe: SanafeGoal | None, holds: bool) -> str:
     tops = ", ".join(f"{c['ratio']['p95']:.3g}x the {c['baseline']} ANN" for c in main["checks"])
-    head = (f"the goal {'holds' if holds else 'does not hold'} on {main['chip']} "
-            f"(the 90 % interval tops out at {tops})")  # fmt: skip
+    head = (
+        f"the goal {'holds' if holds else 'does not hold'} on {main['chip']} "
+        f"(the 90 % interval tops out at {tops})"
+    )
     if main["in_the_way"]:
         head += f"; {main['in_the_way']['text']}"
     for chip in named:
@@ -187,11 +218,18 @@ def _verdict(main: ChipGoal, named: list[ChipGoal], sanafe: SanafeGoal | None,
     return head
 
 
-def priced_policy(policy: SigmaDeltaCounts | SnnCounts, chip: Profile, baseline: Profile,
-                  ann: AnnCounts) -> Priced:  # fmt: skip
+def priced_policy(
+    policy: SigmaDeltaCounts | SnnCounts, chip: Profile, baseline: Profile, ann: AnnCounts
+) -> Priced:
     """A policy of any family (sigma-delta, LIF, stateful or not) priced by :func:`terms` on
     ``chip`` with its host work on ``baseline``, against ``ann`` on ``baseline`` (as the
     report prices a pair when no host profile is given)."""
     snn = terms(policy, chip, baseline)
-    return Priced(chip.name, baseline.name, tuple(snn), tuple(ann_terms(ann, baseline)),
-                  (policy.prices_for(chip), baseline))  # fmt: skip
+    return Priced(
+        chip.name,
+        baseline.name,
+        tuple(snn),
+        tuple(ann_terms(ann, baseline)),
+        (policy.prices_for(chip), baseline),
+        policy.period_s,
+    )

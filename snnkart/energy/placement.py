@@ -52,6 +52,10 @@ class Placement:
         return math.ceil(sum(self.cores) / self.cores_per_tile)
 
     def as_dict(self) -> dict[str, object]:
-        return {"neurons_per_core": self.neurons_per_core, "cores_per_tile": self.cores_per_tile,
-                "cores": list(self.cores), "tiles": self.tiles,
-                "hops_per_spike": list(self.hops_per_spike)}  # fmt: skip
+        return {
+            "neurons_per_core": self.neurons_per_core,
+            "cores_per_tile": self.cores_per_tile,
+            "cores": list(self.cores),
+            "tiles": self.tiles,
+            "hops_per_spike": list(self.hops_per_spike),
+        }

@@ -20,17 +20,26 @@ so it has no link. Static power x the control period is a term of its own on eac
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, replace
-from typing import Any
+from dataclasses import dataclass, replace
+from typing import cast
 
+from snnkart.contract.energy_record import DensityBreakEven
+from snnkart.contract.report_record import SensitivityRow, Static, TermRecord
 from snnkart.energy.activity import Counted
 from snnkart.energy.counts import AnnCounts, HostOp, SnnCounts
-from snnkart.energy.profiles import Profile, memory_row
+from snnkart.energy.profiles import Price, Profile, memory_row
 from snnkart.envs.constants import DT
 from snnkart.errors import ProfileError
 
-PARTS = ("synaptic ops", "neuron updates", "spikes", "routing", "host link", "host compute",
-         "memory")  # fmt: skip
+PARTS = (
+    "synaptic ops",
+    "neuron updates",
+    "spikes",
+    "routing",
+    "host link",
+    "host compute",
+    "memory",
+)
 """The dynamic energy's parts (memory: weight reads, priced by a memory-inclusive profile)."""
 STATIC = "static"
 """The part of a static term: static power x the control period."""
@@ -40,27 +49,40 @@ CONTROL_PERIOD_S = DT
 
 @dataclass(frozen=True)
 class Term:
-    """One priced count: ``energy_pj = count * price_pj``."""
+    """One priced count: ``energy_pj = count * price_pj``, with the profile's figure it used."""
 
     part: str
     what: str
     count: float
     profile: str
     op: str
-    price_pj: float
-    source: str
+    price: Price
+
+    @property
+    def price_pj(self) -> float:
+        return self.price.value
 
     @property
     def energy_pj(self) -> float:
-        return self.count * self.price_pj
+        return self.count * self.price.value
 
-    def as_dict(self) -> dict[str, Any]:
-        return {**asdict(self), "energy_pj": self.energy_pj}
+    def as_dict(self) -> TermRecord:
+        """The report's record of the term (``$defs/term``): the price flattened to its value
+        and source."""
+        return TermRecord(
+            part=self.part,
+            what=self.what,
+            count=self.count,
+            profile=self.profile,
+            op=self.op,
+            price_pj=self.price.value,
+            source=self.price.source,
+            energy_pj=self.energy_pj,
+        )
 
 
 def _term(part: str, what: str, count: float, profile: Profile, op: str) -> Term:
-    price = profile.prices[op]
-    return Term(part, what, count, profile.name, op, price.value, price.source)
+    return Term(part, what, count, profile.name, op, profile.prices[op])
 
 
 def _digital(ops: Iterable[HostOp], profile: Profile, part: str, parameters: int) -> list[Term]:
@@ -74,8 +96,10 @@ def _digital(ops: Iterable[HostOp], profile: Profile, part: str, parameters: int
             terms.append(_term(part, op.what, op.count, profile, op.op))
             continue
         reads = op.count * profile.weight_bits / 64
-        what = (f"{op.what}: {op.count:g} x {profile.weight_bits} bits = {reads:g} 64-bit reads "
-                f"from the array for {nbytes / 1000:.3g} kB of weights")  # fmt: skip
+        what = (
+            f"{op.what}: {op.count:g} x {profile.weight_bits} bits = {reads:g} 64-bit reads "
+            f"from the array for {nbytes / 1000:.3g} kB of weights"
+        )
         terms.append(_term("memory", what, reads, profile, row))
     return terms
 
@@ -104,8 +128,11 @@ def static_terms(profile: Profile, seconds: float, role: str) -> list[Term]:
 def not_published(*profiles: Profile) -> list[dict[str, str]]:
     """The optional prices these profiles have no figure for, and why."""
     seen = {p.name: p for p in profiles}
-    return [{"profile": p.name, "op": op, "why": why}
-            for p in seen.values() for op, why in p.not_published.items()]  # fmt: skip
+    return [
+        {"profile": p.name, "op": op, "why": why}
+        for p in seen.values()
+        for op, why in p.not_published.items()
+    ]
 
 
 def total(terms: Iterable[Term]) -> float:
@@ -131,7 +158,7 @@ def with_price(profile: Profile, op: str, value: float) -> Profile:
 @dataclass(frozen=True)
 class Comparison:
     """The SNN on ``chip`` (host work on ``host``) against the ANN on ``digital``, one inference
-    per control period ``period_s``. When ``host`` and ``digital`` are the same profile, its
+    per control period (the SNN's counts': :attr:`SnnCounts.period_s`). When ``host`` and ``digital`` are the same profile, its
     prices are shared: a price moved on one side only is refused."""
 
     snn: SnnCounts
@@ -139,7 +166,11 @@ class Comparison:
     chip: Profile
     host: Profile
     digital: Profile
-    period_s: float = CONTROL_PERIOD_S
+
+    @property
+    def period_s(self) -> float:
+        """The control period the static terms are taken over."""
+        return self.snn.period_s
 
     def __post_init__(self) -> None:
         if self.host.name != self.digital.name:
@@ -171,7 +202,7 @@ class Comparison:
         snn += static_terms(self.host, self.period_s, "SNN's host")
         return snn, static_terms(self.digital, self.period_s, "ANN's host")
 
-    def with_static(self) -> dict[str, Any]:
+    def with_static(self) -> Static:
         """The verdict with static power over the control period, the average power at the
         control rate, and the static figures that are not published (counted as 0)."""
         e_snn, e_ann = self.energies()
@@ -180,7 +211,8 @@ class Comparison:
         both = e_ann + s_ann
         return {
             "control_period_s": self.period_s,
-            "snn_static_pj": s_snn, "ann_static_pj": s_ann,
+            "snn_static_pj": s_snn,
+            "ann_static_pj": s_ann,
             "snn_static_terms": [t.as_dict() for t in s_terms],
             "ann_static_terms": [t.as_dict() for t in a_terms],
             "ratio": (e_snn + s_snn) / both if both > 0 else None,
@@ -191,12 +223,13 @@ class Comparison:
                 "ann_with_static": both * 1e-12 / self.period_s,
             },
             "not_published": [
-                n for n in not_published(self.chip, self.host, self.digital)
+                n
+                for n in not_published(self.chip, self.host, self.digital)
                 if n["op"] == "static_power"
             ],
             "note": "a static power that is not published counts as 0; the host's adds alike "
-                    "to both sides (the ANN runs on the SNN's host), pulling the ratio towards 1",
-        }  # fmt: skip
+            "to both sides (the ANN runs on the SNN's host), pulling the ratio towards 1",
+        }
 
     def _moved(self, side: str, op: str, value: float) -> Comparison:
         """This comparison with ``op`` at ``value`` on ``side`` (chip, host or digital); a
@@ -209,10 +242,10 @@ class Comparison:
         chip = with_price(self.chip, op, value) if side == "chip" else self.chip
         return replace(self, chip=chip, host=host, digital=digital)
 
-    def sensitivity(self) -> list[dict[str, Any]]:
+    def sensitivity(self) -> list[SensitivityRow]:
         """The ratio with each dynamic price at its low and high end and at 0.1x and 10x its
         value (a price the host and the ANN share moved on both sides together)."""
-        rows = []
+        rows: list[SensitivityRow] = []
         shared = self.host.name == self.digital.name
         sides = ("chip", "digital") if shared else ("chip", "host", "digital")
         for side in sides:
@@ -222,38 +255,50 @@ class Comparison:
                     continue  # not part of the dynamic ratio: see with_static
                 ratios = {
                     name: self._moved(side, op, value).ratio()
-                    for name, value in (("low", price.low), ("high", price.high),
-                                        ("x0.1", price.value / 10), ("x10", price.value * 10))
-                }  # fmt: skip
+                    for name, value in (
+                        ("low", price.low),
+                        ("high", price.high),
+                        ("x0.1", price.value / 10),
+                        ("x10", price.value * 10),
+                    )
+                }
                 label = "host+digital" if shared and side == "digital" else side
-                rows.append({"profile": profile.name, "side": label, "op": op,
-                             "ratio": self.ratio(),
-                             **{f"ratio_{k}": v for k, v in ratios.items()}})  # fmt: skip
+                row = {"profile": profile.name, "side": label, "op": op, "ratio": self.ratio()}
+                rows.append(
+                    cast(SensitivityRow, row | {f"ratio_{k}": v for k, v in ratios.items()})
+                )
         return rows
 
-    def break_even(self) -> dict[str, Any]:
+    def break_even(self) -> DensityBreakEven:
         """How sparse the SNN must be to match the ANN: its energy is a fixed part (neuron
-        updates, the host link, host work) plus a part proportional to its spikes, so the break-even density
-        (spikes relative to today's) solves ``fixed + d * variable = E_ann``."""
+        updates, the host link, host work) plus a part proportional to its spikes, so the
+        break-even density (spikes relative to today's) solves ``fixed + d * variable = E_ann``."""
         e_ann = self.energies()[1]
         fixed = total(terms(self.snn.scaled(0.0), self.chip, self.host))
         variable = total(terms(self.snn, self.chip, self.host)) - fixed
-        out: dict[str, Any] = {"ann_pj": e_ann, "fixed_pj": fixed, "per_density_pj": variable}
+        head = DensityBreakEven(
+            ann_pj=e_ann, fixed_pj=fixed, per_density_pj=variable, density=None, reason=""
+        )
         if fixed >= e_ann:
-            out.update(density=None, reason="the clocked neuron updates, the host link and the "
-                       "host work alone cost at least as much as the ANN: no sparsity can break "
-                       "even")  # fmt: skip
-            return out
+            reason = (
+                "the clocked neuron updates, the host link and the host work alone cost at "
+                "least as much as the ANN: no sparsity can break even"
+            )
+            return head | {"reason": reason}
         if variable <= 0:
-            out.update(density=None, reason="the SNN's energy does not depend on its spikes "
-                       "here (no spikes, or spikes priced at 0), and it is below the ANN's")  # fmt: skip
-            return out
+            reason = (
+                "the SNN's energy does not depend on its spikes here (no spikes, or spikes "
+                "priced at 0), and it is below the ANN's"
+            )
+            return head | {"reason": reason}
         d = (e_ann - fixed) / variable
-        out.update(
+        return DensityBreakEven(
+            ann_pj=e_ann,
+            fixed_pj=fixed,
+            per_density_pj=variable,
             density=d,
             firing_rates=[r * d for r in self.snn.firing_rates()],
             synops=d * sum(self.snn.synops),
-            reason="the SNN uses less energy than the ANN below this density (spikes relative to "
-            "the deployed policy's; pipeline fill/drain spikes scaled alike)",
+            reason="the SNN uses less energy than the ANN below this density (spikes relative "
+            "to the deployed policy's; pipeline fill/drain spikes scaled alike)",
         )
-        return out

@@ -71,9 +71,16 @@ POWER_UNITS = {"uW": 1e6, "mW": 1e9, "W": 1e12}
 TAGS = ("measured", "pre-silicon", "derived", "assumed")
 PRICES = {
     "neuromorphic": ("synaptic_op", "neuron_update", "spike"),
-    "digital": ("mac", "add", "mult", "sram_read_8kb", "sram_read_32kb", "sram_read_1mb",
-                "dram_read"),
-}  # fmt: skip
+    "digital": (
+        "mac",
+        "add",
+        "mult",
+        "sram_read_8kb",
+        "sram_read_32kb",
+        "sram_read_1mb",
+        "dram_read",
+    ),
+}
 """The operations each kind of profile must price."""
 OPTIONAL = {
     "neuromorphic": ("hop", "io_bit", "static_power"),
@@ -88,9 +95,16 @@ MEMORY_ROWS = (
 )
 """Horowitz's rows (ISSCC 2014): the largest footprint in bytes each array holds, smallest first."""
 BUILTIN = (
-    "loihi1", "loihi2", "spinnaker2", "spinnaker1", "truenorth",
-    "horowitz45_fp32", "horowitz45_int8", "horowitz45_fp32_sram", "arm_degnan2015",
-)  # fmt: skip
+    "loihi1",
+    "loihi2",
+    "spinnaker2",
+    "spinnaker1",
+    "truenorth",
+    "horowitz45_fp32",
+    "horowitz45_int8",
+    "horowitz45_fp32_sram",
+    "arm_degnan2015",
+)
 DEFAULT_CHIPS = ("loihi1", "loihi2", "spinnaker2", "spinnaker1", "truenorth")
 DEFAULT_DIGITAL = ("horowitz45_fp32_sram", "horowitz45_int8", "arm_degnan2015")
 """The realistic digital targets (memory priced, or an all-in per-op figure); the compute-only
@@ -100,8 +114,20 @@ RULES = {"neuron_updates": ("clocked", "active"), "messages": ("binary", "graded
 """A neuromorphic profile's rules (``[rules.<name>]``) and the values each may take, the
 default (costlier) first."""
 
-_TOP_KEYS = {"schema", "name", "title", "kind", "technology", "notes", "prices", "not_published",
-             "weight_bits", "neurons_per_core", "cores_per_tile", "rules"}  # fmt: skip
+_TOP_KEYS = {
+    "schema",
+    "name",
+    "title",
+    "kind",
+    "technology",
+    "notes",
+    "prices",
+    "not_published",
+    "weight_bits",
+    "neurons_per_core",
+    "cores_per_tile",
+    "rules",
+}
 _PRICE_KEYS = {"value", "low", "high", "unit", "tag", "source"}
 _RULE_KEYS = {"value", "tag", "source"}
 
@@ -128,9 +154,15 @@ class Price:
     source: str
 
     def as_dict(self) -> PriceRecord:
-        return {"pj": self.value, "low_pj": self.low, "high_pj": self.high,
-                "per": "second" if self.unit in POWER_UNITS else "operation",
-                "unit_in_file": self.unit, "tag": self.tag, "source": self.source}  # fmt: skip
+        return {
+            "pj": self.value,
+            "low_pj": self.low,
+            "high_pj": self.high,
+            "per": "second" if self.unit in POWER_UNITS else "operation",
+            "unit_in_file": self.unit,
+            "tag": self.tag,
+            "source": self.source,
+        }
 
 
 @dataclass(frozen=True)
@@ -147,8 +179,11 @@ class Rule:
 
 def default_rule(name: str) -> Rule:
     """The rule a profile that states none is read with: the costlier value, ``assumed``."""
-    return Rule(RULES[name][0], "assumed", "not stated by the profile: snnkart assumes the "
-                f"costlier rule ({RULES[name][0]})")  # fmt: skip
+    return Rule(
+        RULES[name][0],
+        "assumed",
+        f"not stated by the profile: snnkart assumes the costlier rule ({RULES[name][0]})",
+    )
 
 
 @dataclass(frozen=True)
@@ -187,12 +222,18 @@ class Profile:
 
     def describe(self) -> ProfileRecord:
         return {
-            "name": self.name, "title": self.title, "kind": self.kind,
-            "technology": self.technology, "notes": self.notes, "file": self.path,
+            "name": self.name,
+            "title": self.title,
+            "kind": self.kind,
+            "technology": self.technology,
+            "notes": self.notes,
+            "file": self.path,
             "prices": {op: p.as_dict() for op, p in self.prices.items()},
-            "not_published": dict(self.not_published), "weight_bits": self.weight_bits,
-            "neurons_per_core": self.neurons_per_core, "cores_per_tile": self.cores_per_tile,
-        }  # fmt: skip
+            "not_published": dict(self.not_published),
+            "weight_bits": self.weight_bits,
+            "neurons_per_core": self.neurons_per_core,
+            "cores_per_tile": self.cores_per_tile,
+        }
 
 
 def load_profile(name_or_path: str | Path) -> Profile:
@@ -238,19 +279,27 @@ def parse_profile(text: str, source: str) -> Profile:
     if kind not in PRICES:
         raise ProfileError(f"{source}: kind: {kind!r} is not one of {', '.join(PRICES)}")
     prices, not_published = _prices(raw, kind, source)
-    ints = {k: _count(raw, k, d, source) for k, d in
-            (("weight_bits", 32), ("neurons_per_core", 0), ("cores_per_tile", 1))}  # fmt: skip
+    ints = {
+        k: _count(raw, k, d, source)
+        for k, d in (("weight_bits", 32), ("neurons_per_core", 0), ("cores_per_tile", 1))
+    }
     if "hop" in prices and ints["neurons_per_core"] < 1:
         raise ProfileError(
             f"{source}: neurons_per_core: missing; a profile that prices hop places the "
             "layers on cores: add neurons_per_core = N (and cores_per_tile)"
         )
     return Profile(
-        name=raw["name"], title=raw["title"], kind=kind,
-        technology=str(raw.get("technology", "")), notes=str(raw.get("notes", "")).strip(),
-        prices=prices, path=source, not_published=not_published,
-        rules=_rules(raw.get("rules", {}), kind, source), **ints,
-    )  # fmt: skip
+        name=raw["name"],
+        title=raw["title"],
+        kind=kind,
+        technology=str(raw.get("technology", "")),
+        notes=str(raw.get("notes", "")).strip(),
+        prices=prices,
+        path=source,
+        not_published=not_published,
+        rules=_rules(raw.get("rules", {}), kind, source),
+        **ints,
+    )
 
 
 def _rules(raw: Any, kind: str, source: str) -> dict[str, Rule]:

@@ -22,11 +22,14 @@ import os
 import subprocess
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from snnkart.contract.report_record import TermRecord
+from snnkart.contract.sanafe_record import SanafeEstimate, SanafeVersus
 from snnkart.errors import SnnkartError
 
 PYTHON_ENV = "SNNKART_SANAFE_PYTHON"
@@ -36,8 +39,6 @@ INSTALL_HINT = (
 )
 WORKER = Path(__file__).with_name("sanafe_worker.py")
 TIMEOUT_S = 1800.0
-CONTROL_PERIOD_S = 1 / 60
-"""The env's control period: one decision per 1/60 s (60 Hz)."""
 
 LOIHI_YAML = "sanafe 2.2.9, sanafe/examples/loihi.yaml (= arch/loihi.yaml of SLAM-Lab/SANA-FE)"
 SANAFE_PJ = {
@@ -64,10 +65,15 @@ def sanafe_python() -> str | None:
     return sys.executable if importlib.util.find_spec("sanafe") is not None else None
 
 
-def run_sanafe(job: dict[str, Any], arrays: dict[str, np.ndarray], python: str,
-               worker: Path = WORKER, timeout: float = TIMEOUT_S) -> dict[str, Any]:  # fmt: skip
-    """Run ``worker`` (:mod:`snnkart.energy.sanafe_worker`, or the sigma-delta replay
-    :mod:`snnkart.energy.sanafe_sd_worker`) on ``job`` under ``python``; its result."""
+def run_sanafe(
+    job: dict[str, Any],
+    arrays: dict[str, np.ndarray],
+    python: str,
+    worker: Path = WORKER,
+    timeout: float = TIMEOUT_S,
+) -> dict[str, Any]:
+    """Run ``worker`` (:mod:`snnkart.energy.sanafe_worker`: a LIF job, or a sigma-delta
+    replay) on ``job`` under ``python``; its result."""
     with tempfile.TemporaryDirectory(prefix="snnkart-sanafe-") as tmp:
         job_dir = Path(tmp)
         (job_dir / "job.json").write_text(json.dumps(job))
@@ -75,8 +81,11 @@ def run_sanafe(job: dict[str, Any], arrays: dict[str, np.ndarray], python: str,
         try:
             proc = subprocess.run(
                 [python, "-I", str(worker), str(job_dir)],
-                capture_output=True, text=True, timeout=timeout, check=False,
-            )  # fmt: skip
+                capture_output=True,
+                text=True,
+                timeout=timeout,
+                check=False,
+            )
         except (OSError, subprocess.TimeoutExpired) as exc:
             raise SanafeError(f"SANA-FE could not run under {python}: {exc}") from exc
         result = job_dir / "result.json"
@@ -85,13 +94,16 @@ def run_sanafe(job: dict[str, Any], arrays: dict[str, np.ndarray], python: str,
             missing = "No module named 'sanafe'" in text
             raise SanafeError(
                 f"SANA-FE ended with status {proc.returncode} under {python}: "
-                + (f"sanafe is not installed there; {INSTALL_HINT}" if missing
-                   else " | ".join(text.splitlines()[-2:]) or "no message")
-            )  # fmt: skip
+                + (
+                    f"sanafe is not installed there; {INSTALL_HINT}"
+                    if missing
+                    else " | ".join(text.splitlines()[-2:]) or "no message"
+                )
+            )
         return dict(json.loads(result.read_text()))
 
 
-def per_inference(run: dict[str, Any]) -> dict[str, Any]:
+def per_inference(run: dict[str, Any]) -> SanafeEstimate:
     """SANA-FE's replay per env step: energy by component and term (pJ), counts, latency."""
     n = max(run["env_steps"], 1)
     e = {k: v * 1e12 / n for k, v in run["energy_j"].items()}
@@ -112,26 +124,30 @@ def per_inference(run: dict[str, Any]) -> dict[str, Any]:
     return {
         "energy_pj": {**e, "total": sum(e.values())},
         "terms_pj": terms,
-        "unexplained_pj": e["synapse"] + e["soma"] + e["dendrite"] + e["network"]
-        - explained - terms["network: hops"],
+        "unexplained_pj": e["synapse"]
+        + e["soma"]
+        + e["dendrite"]
+        + e["network"]
+        - explained
+        - terms["network: hops"],
         "counts": {
-            **c, "neuron_accesses": access, "lif_neurons_updated": lif_updated,
+            **c,
+            "neuron_accesses": access,
+            "lif_neurons_updated": lif_updated,
             "lif_spikes_fired": lif_fired,
         },
         "latency_s": run["latency_s"],
-    }  # fmt: skip
+    }
 
 
-def _prices(chip_terms: list[dict[str, Any]], part: str) -> str:
+def _prices(chip_terms: Sequence[TermRecord], part: str) -> str:
     """snnkart's price(s) for ``part``, as the terms name them: "81 pJ (loihi1)"."""
     terms = [t for t in chip_terms if t["part"] == part]
     prices = sorted({f"{t['price_pj']:g}" for t in terms})
     return f"{' / '.join(prices) or '-'} pJ ({terms[0]['profile'] if terms else 'no term'})"
 
 
-def versus_snnkart(
-    sanafe: dict[str, Any], chip_terms: list[dict[str, Any]]
-) -> list[dict[str, Any]]:
+def versus_snnkart(sanafe: SanafeEstimate, chip_terms: Sequence[TermRecord]) -> list[SanafeVersus]:
     """SANA-FE's components against snnkart's chip terms (``snn_terms`` on ``loihi1``, as
     dicts), each pair's ratio, and the pairs more than 2x apart flagged."""
     ours = {
@@ -140,24 +156,38 @@ def versus_snnkart(
     }
     t = sanafe["terms_pj"]
     pairs = [
-        ("synaptic ops", "SANA-FE 35.5 pJ per dense synaptic event; snnkart "
-         f"{_prices(chip_terms, 'synaptic ops')} per synaptic op",
-         t["synapse: synaptic events x 35.5"]),
-        ("neuron updates", "SANA-FE 51.2 pJ access for every neuron and step + 21.6 pJ per "
-         f"update; snnkart {_prices(chip_terms, 'neuron updates')} per neuron and step",
-         t["soma: neuron accesses x 51.2"] + t["soma: neuron updates x 21.6"]),
-        ("spikes", "SANA-FE 69.3 pJ per spike fired + 111 pJ per packet to another core + "
-         f"hops; snnkart {_prices(chip_terms, 'spikes')} per spike",
-         t["soma: spikes fired x 69.3"] + t["network: packets x 111"] + t["network: hops"]),
-    ]  # fmt: skip
-    rows = [
-        {"term": part, "why": why, "snnkart_pj": ours[part], "sanafe_pj": theirs}
-        for part, why, theirs in pairs
+        (
+            "synaptic ops",
+            "SANA-FE 35.5 pJ per dense synaptic event; snnkart "
+            f"{_prices(chip_terms, 'synaptic ops')} per synaptic op",
+            t["synapse: synaptic events x 35.5"],
+        ),
+        (
+            "neuron updates",
+            "SANA-FE 51.2 pJ access for every neuron and step + 21.6 pJ per "
+            f"update; snnkart {_prices(chip_terms, 'neuron updates')} per neuron and step",
+            t["soma: neuron accesses x 51.2"] + t["soma: neuron updates x 21.6"],
+        ),
+        (
+            "spikes",
+            "SANA-FE 69.3 pJ per spike fired + 111 pJ per packet to another core + "
+            f"hops; snnkart {_prices(chip_terms, 'spikes')} per spike",
+            t["soma: spikes fired x 69.3"] + t["network: packets x 111"] + t["network: hops"],
+        ),
     ]
-    rows.append({"term": "chip total", "why": "the three above",
-                 "snnkart_pj": sum(ours.values()), "sanafe_pj": sanafe["energy_pj"]["total"]})  # fmt: skip
-    for row in rows:
-        a, b = row["snnkart_pj"], row["sanafe_pj"]
-        row["ratio_sanafe_to_snnkart"] = b / a if a > 0 else None
-        row["over_2x"] = a != b and (min(a, b) <= 0 or max(a, b) > 2 * min(a, b))
-    return rows
+    rows = [(part, why, ours[part], theirs) for part, why, theirs in pairs]
+    rows.append(("chip total", "the three above", sum(ours.values()), sanafe["energy_pj"]["total"]))
+    return [_versus(*row) for row in rows]
+
+
+def _versus(term: str, why: str, ours: float, theirs: float) -> SanafeVersus:
+    """One pair of figures, their ratio, and whether they are more than 2x apart."""
+    apart = ours != theirs and (min(ours, theirs) <= 0 or max(ours, theirs) > 2 * min(ours, theirs))
+    return SanafeVersus(
+        term=term,
+        why=why,
+        snnkart_pj=ours,
+        sanafe_pj=theirs,
+        ratio_sanafe_to_snnkart=theirs / ours if ours > 0 else None,
+        over_2x=apart,
+    )

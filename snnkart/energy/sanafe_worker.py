@@ -22,6 +22,22 @@ the host's current as a per-row bias. Modes:
 - ``chain``: ``N{i}`` feeds ``N{i+1}`` directly: does SANA-FE's LIF reproduce the spikes?
 
 A spike sent at row r is integrated at row r + 1 (one step per layer, as Lava's Dense).
+
+A sigma-delta job (``job.json`` ``family: "sigma_delta"``, written by
+:mod:`snnkart.energy.sanafe_sigma_delta`) replays a deployment's messages instead. SANA-FE 2.2.9
+has no sigma-delta neuron and no graded message, so each message is mapped to a spike event:
+the sending layer is an input group replaying which of its neurons sent at each Lava row, and
+the receiving layer a LIF group that integrates without ever firing (threshold out of reach,
+no leak, no reset), so SANA-FE charges what it charges a Loihi neuron for every mapped neuron
+at every row (access) and for every one with input, potential or bias (update), and for every
+event its synapse, packet and hops. What the payload leaves out: the spike carries no value, so
+a message costs one binary event whatever its bits, and a synaptic event is an accumulate, not
+the multiply a graded one is. Its ``job.json``: ``sizes`` (the input Delta's ``n_in``, each
+SigmaDelta layer's size, the readout Sigma's ``n_out``), ``rows`` (Lava steps per env step),
+``neurons_per_core``; its ``job.npz``: ``weight{i}`` ``[sizes[i+1], sizes[i]]`` for the Dense
+from sending layer i, ``bias{i}`` ``[sizes[i]]`` for i >= 1, ``sent{i}`` for the sending layers
+i = 0..L: ``[E, rows, sizes[i]]`` bool, which neurons sent at each row of env step e, or
+``[E, sizes[i]]``, which sent in env step e, placed at row i as the held schedule has it.
 """
 
 from __future__ import annotations
@@ -39,6 +55,8 @@ from typing import Any
 import numpy as np
 
 COMPONENTS = ("synapse", "dendrite", "soma", "network")
+NEVER = 1e30
+"""A sigma-delta job's receiving groups' threshold: they integrate and never fire."""
 
 
 def _cores(arch: Any, sizes: list[int], per_core: int) -> list[list[Any]]:
@@ -62,10 +80,13 @@ def build(sanafe: Any, job: dict[str, Any], arrays: Any, mode: str) -> Any:
     for i, layer in enumerate(layers):
         attrs = {k: layer[k] for k in ("threshold", "leak_decay", "input_decay")}
         group = net.create_neuron_group(
-            f"N{i}", layer["n"], log_spikes=True, soma_hw_name="loihi_lif",
+            f"N{i}",
+            layer["n"],
+            log_spikes=True,
+            soma_hw_name="loihi_lif",
             default_synapse_hw_name="loihi_dense_synapse",
             model_attributes={**attrs, "reset": 0.0, "reset_mode": "hard"},
-        )  # fmt: skip
+        )
         for j, neuron in enumerate(group):
             neuron.set_attributes(model_attributes={"bias": float(arrays[f"bias{i}"][j])})
             neuron.map_to_core(cores[i][j // per_core])
@@ -98,17 +119,28 @@ class Tally:
         self.window = np.zeros((rows, int(self.offsets[-1])), dtype=bool)
         self.replayed = np.zeros(len(sizes), dtype=np.int64)
 
+    def latency_s(self) -> dict[str, float]:
+        """Simulated latency per env step: mean and max (s)."""
+        lat = self.latency
+        return {
+            "mean": float(np.mean(lat)) if lat else 0.0,
+            "max": float(np.max(lat)) if lat else 0.0,
+        }
+
     def add(self, res: dict[str, Any], row: int) -> None:
         for k in COMPONENTS:
             self.energy[k] += res["energy"][k]
         perf = res["perf_trace"]
         self.latency[-1] += float(sum(perf["sim_time"]))
         self.counts["hops"] += int(sum(perf["hops"]))
-        for key, name in (("synaptic_events", "spikes"), ("packets", "packets_sent"),
-                          ("neurons_updated", "neurons_updated"),
-                          ("neurons_fired", "neurons_fired")):  # fmt: skip
+        for key, name in (
+            ("synaptic_events", "spikes"),
+            ("packets", "packets_sent"),
+            ("neurons_updated", "neurons_updated"),
+            ("neurons_fired", "neurons_fired"),
+        ):
             self.counts[key] += int(res[name])
-        for dt, step in enumerate(res["spike_trace"]):
+        for dt, step in enumerate(res.get("spike_trace") or ()):
             for address in step:
                 kind, layer = address.group_name[0], int(address.group_name[1:])
                 if kind == "N":
@@ -181,16 +213,90 @@ def run(sanafe: Any, job: dict[str, Any], arrays: Any, mode: str) -> dict[str, A
     offsets = tally.offsets
     recorded = [int(raster[:, :, a:b].sum()) for a, b in pairwise(offsets)]
     return {
-        "mode": mode, "env_steps": int(raster.shape[0]), "rows": rows,
-        "energy_j": tally.energy, "counts": tally.counts,
+        "mode": mode,
+        "env_steps": int(raster.shape[0]),
+        "rows": rows,
+        "energy_j": tally.energy,
+        "counts": tally.counts,
         "lif_neuron_rows": int(sum(sizes) * rows * raster.shape[0]),
-        "latency_s": {"mean": float(np.mean(tally.latency)) if tally.latency else 0.0,
-                      "max": float(np.max(tally.latency)) if tally.latency else 0.0},
-        "recorded_spikes": recorded, "lif_spikes": fired.tolist(),
+        "latency_s": tally.latency_s(),
+        "recorded_spikes": recorded,
+        "lif_spikes": fired.tolist(),
         "replayed_spikes": tally.replayed.tolist(),
         "lif_mismatched_logical_neuron_steps": mismatched.tolist(),
         "wall_s": time.perf_counter() - t0,
-    }  # fmt: skip
+    }
+
+
+def build_sigma_delta(sanafe: Any, job: dict[str, Any], arrays: Any) -> Any:
+    """The chip with the replay network loaded (module docstring): ``R{i}`` replays sending
+    layer i (i = 0: the host's Delta, on a core of its own; else on ``N{i}``'s cores),
+    ``N{i}`` (i >= 1) integrates; each group starts a fresh core (tile k // 4, core k % 4)."""
+    arch = sanafe.load_loihi()
+    sizes, per_core = job["sizes"], job["neurons_per_core"]
+    cores = _cores(arch, sizes, per_core)
+    net = sanafe.Network()
+    attrs = {"threshold": NEVER, "leak_decay": 1.0, "input_decay": 0.0, "reset_mode": "none"}
+    lif = {}
+    for i in range(1, len(sizes)):
+        group = net.create_neuron_group(
+            f"N{i}",
+            sizes[i],
+            soma_hw_name="loihi_lif",
+            default_synapse_hw_name="loihi_dense_synapse",
+            model_attributes=attrs,
+        )
+        for j, neuron in enumerate(group):
+            neuron.set_attributes(model_attributes={"bias": float(arrays[f"bias{i}"][j])})
+            neuron.map_to_core(cores[i][j // per_core])
+        lif[i] = group
+    for i in range(len(sizes) - 1):
+        src = net.create_neuron_group(f"R{i}", sizes[i])
+        for j, neuron in enumerate(src):
+            neuron.set_attributes(soma_hw_name=f"loihi_inputs[{j % per_core}]")
+            neuron.map_to_core(cores[i][j // per_core])
+        weight = np.asarray(arrays[f"weight{i}"], dtype=np.float64)  # [post, pre]
+        src.connect_neurons_dense(lif[i + 1], {"weight": weight.T.ravel().tolist()})
+    chip = sanafe.SpikingChip(arch)
+    chip.load(net)
+    return chip
+
+
+def _train(sent: np.ndarray, j: int, layer: int, rows: int) -> list[bool]:
+    """Neuron ``j``'s spikes over the rows of one env step: as recorded per row, or, from a
+    per-env-step mask, at row ``layer`` (the held schedule)."""
+    if sent.ndim == 2:
+        return [bool(x) for x in sent[:, j]]
+    return [bool(sent[j]) and r == layer for r in range(rows)]
+
+
+def run_sigma_delta(sanafe: Any, job: dict[str, Any], arrays: Any) -> dict[str, Any]:
+    """Every env step: each sending layer's messages set at its row, then ``rows`` rows run."""
+    t0 = time.perf_counter()
+    chip = build_sigma_delta(sanafe, job, arrays)
+    sizes, rows = job["sizes"], job["rows"]
+    senders = range(len(sizes) - 1)
+    sent = [np.asarray(arrays[f"sent{i}"], dtype=bool) for i in senders]
+    tally = Tally(sizes, rows)
+    groups = chip.mapped_neuron_groups
+    for e in range(sent[0].shape[0]):
+        for i in senders:
+            for j, neuron in enumerate(groups[f"R{i}"]):
+                train = _train(sent[i][e], j, i, rows)
+                neuron.set_attributes(model_attributes={"spikes": train})
+        tally.latency.append(0.0)
+        with contextlib.redirect_stdout(io.StringIO()):
+            tally.add(chip.sim(rows, perf_trace=True, processing_threads=1), 0)
+    return {
+        "env_steps": int(sent[0].shape[0]),
+        "rows": rows,
+        "energy_j": tally.energy,
+        "counts": tally.counts,
+        "messages": [int(s.sum()) for s in sent],  # per sending layer, all env steps
+        "lif_neuron_rows": int(sum(sizes[1:]) * rows * sent[0].shape[0]),
+        "latency_s": tally.latency_s(),
+        "wall_s": time.perf_counter() - t0,
+    }
 
 
 def main(job_dir: Path) -> None:
@@ -199,7 +305,11 @@ def main(job_dir: Path) -> None:
 
     with np.load(job_dir / "job.npz", allow_pickle=False) as f:
         arrays = {k: f[k] for k in f.files}
-    result: dict[str, Any] = {mode: run(sanafe, job, arrays, mode) for mode in job["modes"]}
+    result: dict[str, Any]
+    if job.get("family") == "sigma_delta":
+        result = run_sigma_delta(sanafe, job, arrays)
+    else:
+        result = {mode: run(sanafe, job, arrays, mode) for mode in job["modes"]}
     result["sanafe_version"] = metadata.version("sanafe")
     (job_dir / "result.json").write_text(json.dumps(result))
 

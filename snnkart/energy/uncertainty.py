@@ -77,9 +77,15 @@ class Draw:
         return self.low + (self.high - self.low) * u
 
     def as_dict(self) -> SampledPrice:
-        return {"profile": self.profile, "op": self.op, "pj": self.value, "low_pj": self.low,
-                "high_pj": self.high, "distribution": self.distribution,
-                "quantity": self.quantity}  # fmt: skip
+        return {
+            "profile": self.profile,
+            "op": self.op,
+            "pj": self.value,
+            "low_pj": self.low,
+            "high_pj": self.high,
+            "distribution": self.distribution,
+            "quantity": self.quantity,
+        }
 
 
 def distribution(price: Price) -> str:
@@ -103,13 +109,23 @@ def _draws(profiles: dict[str, Profile], keys: Iterable[tuple[str, str]]) -> lis
     out = []
     for name, op in keys:
         price = profiles[name].prices[op]
-        out.append(Draw(name, op, price.value, price.low, price.high, distribution(price),
-                        quantity(profiles[name], op)))  # fmt: skip
+        out.append(
+            Draw(
+                name,
+                op,
+                price.value,
+                price.low,
+                price.high,
+                distribution(price),
+                quantity(profiles[name], op),
+            )
+        )
     return out
 
 
-def _coefficients(terms: Sequence[Term], profiles: dict[str, Profile],
-                  index: dict[tuple[str, str], int]) -> np.ndarray:  # fmt: skip
+def _coefficients(
+    terms: Sequence[Term], profiles: dict[str, Profile], index: dict[tuple[str, str], int]
+) -> np.ndarray:
     """Per price, what it multiplies in ``terms``: energy = coefficients . prices. A term may
     price a multiple of the profile's figure (``price_pj = k x value``); its coefficient is
     ``count x k`` (``k = 1`` where the figure is 0)."""
@@ -131,8 +147,10 @@ def sample_prices(draws: Sequence[Draw], samples: int, seed: int) -> np.ndarray:
     numbers whatever else is drawn."""
     rng = np.random.default_rng(seed)
     names = sorted({d.quantity for d in draws})
-    u = (rng.permuted(np.tile(np.arange(samples), (len(names), 1)), axis=1)
-         + rng.random((len(names), samples))) / samples  # fmt: skip
+    u = (
+        rng.permuted(np.tile(np.arange(samples), (len(names), 1)), axis=1)
+        + rng.random((len(names), samples))
+    ) / samples
     row = {name: i for i, name in enumerate(names)}
     return np.stack([d.at(u[row[d.quantity]]) for d in draws], axis=1)
 
@@ -147,8 +165,13 @@ def _finite(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def joint(snn: Sequence[Term], ann: Sequence[Term], profiles: Iterable[Profile],
-          samples: int = SAMPLES, seed: int = SEED) -> Joint:  # fmt: skip
+def joint(
+    snn: Sequence[Term],
+    ann: Sequence[Term],
+    profiles: Iterable[Profile],
+    samples: int = SAMPLES,
+    seed: int = SEED,
+) -> Joint:
     """The SNN's and the ANN's energies (terms ``snn`` and ``ann``, priced on ``profiles``)
     with every price drawn from its range together: the ratio's median, 90 % interval
     (5th-95th percentile) and the probability that the SNN costs less."""
@@ -189,8 +212,7 @@ def _shared(draws: Sequence[Draw], c_snn: np.ndarray, c_ann: np.ndarray) -> list
     return sorted(snn & ann)
 
 
-def one_at_a_time(draws: Sequence[Draw], c_snn: np.ndarray,
-                  c_ann: np.ndarray) -> list[OneAtATime]:  # fmt: skip
+def one_at_a_time(draws: Sequence[Draw], c_snn: np.ndarray, c_ann: np.ndarray) -> list[OneAtATime]:
     """Each uncertain quantity alone at the low and the high end of its range (a shared one on
     both sides at once), every other price at its value: the ratio at either end, the widest
     swing first (the single input that moves the verdict most)."""
@@ -203,9 +225,15 @@ def one_at_a_time(draws: Sequence[Draw], c_snn: np.ndarray,
             ends[:, i] = draws[i].at(np.array([0.0, 1.0]))
         e_snn, e_ann = ends @ c_snn, ends @ c_ann
         ratios = [float(a / b) if b > 0 else None for a, b in zip(e_snn, e_ann, strict=True)]
-        rows.append({"quantity": q, "prices": [f"{draws[i].profile}.{draws[i].op}" for i in moved],
-                     "sides": _sides(moved, c_snn, c_ann),
-                     "ratio_low": ratios[0], "ratio_high": ratios[1]})  # fmt: skip
+        rows.append(
+            {
+                "quantity": q,
+                "prices": [f"{draws[i].profile}.{draws[i].op}" for i in moved],
+                "sides": _sides(moved, c_snn, c_ann),
+                "ratio_low": ratios[0],
+                "ratio_high": ratios[1],
+            }
+        )
     return sorted(rows, key=_swing, reverse=True)
 
 

@@ -231,10 +231,16 @@ class KartEnv(KartState, gym.Env[np.ndarray, Any], Generic[ConfigT]):
         stood_still = not (finished or crashed) and still_steps >= rw.stand_still_steps
         stalled = self._stall.update(self._next_cp, self._geo_d) > rw.stall_grace_steps
         terms = step_terms(
-            rw, progress_px=progress_px, turn=turn, passed=self._passed_this_step,
-            finished=finished, crashed=crashed, stood_still=stood_still, stalled=stalled,
+            rw,
+            progress_px=progress_px,
+            turn=turn,
+            passed=self._passed_this_step,
+            finished=finished,
+            crashed=crashed,
+            stood_still=stood_still,
+            stalled=stalled,
             impact_m_s=speed0,
-        )  # fmt: skip
+        )
         self._extra_reward_terms(terms)
         self._passed_this_step = 0
         terminated = finished or crashed or stood_still

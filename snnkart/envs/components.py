@@ -31,9 +31,15 @@ from snnkart.envs.constants import WORLD_SIZE_PX
 from snnkart.envs.observation import ObsField
 
 COMPONENTS = (
-    "lidar", "position", "heading", "velocity", "angular_velocity", "steering", "checkpoint",
+    "lidar",
+    "position",
+    "heading",
+    "velocity",
+    "angular_velocity",
+    "steering",
+    "checkpoint",
     "previous_action",
-)  # fmt: skip
+)
 """Every component name, in the table's order."""
 
 _DEFAULT_FIELDS = {

@@ -33,8 +33,14 @@ class DiffDrive:
     def of(cls, p: Any, discrete: bool) -> DiffDrive:
         """From a :class:`~snnkart.envs.config.GazeboPhysics`."""
         ppm = PIXELS_PER_METRE
-        return cls(p.max_linear_m_s * ppm, p.max_angular_rad_s, p.linear_step_m_s * ppm,
-                   p.angular_decay, p.drag_per_step, discrete)  # fmt: skip
+        return cls(
+            p.max_linear_m_s * ppm,
+            p.max_angular_rad_s,
+            p.linear_step_m_s * ppm,
+            p.angular_decay,
+            p.drag_per_step,
+            discrete,
+        )
 
     def command(self, action: Any) -> tuple[float, float]:
         """Apply ``action``; the velocity to drive at during this step."""
@@ -170,9 +176,15 @@ class GazeboEnv(KartEnv[GazeboConfig]):
         return start + 4
 
     def observe_measured(
-        self, x: float, y: float, heading: float, v: float, w: float, next_cp: int,
+        self,
+        x: float,
+        y: float,
+        heading: float,
+        v: float,
+        w: float,
+        next_cp: int,
         lidar: np.ndarray,
-    ) -> np.ndarray:  # fmt: skip
+    ) -> np.ndarray:
         """The observation this env builds for a robot at ``(x, y)`` px, ``heading`` (rad,
         clockwise on screen), moving at ``v`` px/s and turning at ``w`` rad/s (clockwise), with
         ``next_cp`` to pass next and measured normalised ray distances ``lidar``: what a ROS

@@ -90,8 +90,12 @@ def box_segment_distance(centre: tuple[float, float], half: float, seg: np.ndarr
 
 def _segments_cross_box(centre: tuple[float, float], half: float, seg: np.ndarray) -> bool:
     cx, cy = centre
-    corners = [(cx - half, cy - half), (cx + half, cy - half), (cx + half, cy + half),
-               (cx - half, cy + half)]  # fmt: skip
+    corners = [
+        (cx - half, cy - half),
+        (cx + half, cy - half),
+        (cx + half, cy + half),
+        (cx - half, cy + half),
+    ]
     for (x0, y0), (x1, y1) in zip(corners, corners[1:] + corners[:1], strict=True):
         if any(bool(segments_cross(x0, y0, x1, y1, s)) for s in seg):
             return True

@@ -34,20 +34,9 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.envs import palette
 from snnkart.envs.constants import PIXELS_PER_METRE, WORLD_SIZE_PX
-from snnkart.envs.palette import (
-    CHECKPOINT_LATER,
-    CHECKPOINT_NEXT,
-    CHECKPOINT_PASSED,
-    NEGATIVE,
-    PANEL_RULE,
-    POSITIVE,
-    RAY,
-    RAY_HIT,
-    TEXT,
-    TEXT_DIM,
-    Colour,
-)
+from snnkart.envs.palette import Colour
 from snnkart.envs.tracks import Track
 
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -57,11 +46,11 @@ VIEW_MARGIN_PX = 40.0
 """World pixels kept around the track's bounding box in the zoomed view."""
 
 LEGEND: tuple[tuple[str, Colour], ...] = (
-    ("next checkpoint", CHECKPOINT_NEXT),
-    ("passed", CHECKPOINT_PASSED),
-    ("to come", CHECKPOINT_LATER),
-    ("LIDAR rays", RAY),
-    ("ray hit", RAY_HIT),
+    ("next checkpoint", palette.CHECKPOINT_NEXT),
+    ("passed", palette.CHECKPOINT_PASSED),
+    ("to come", palette.CHECKPOINT_LATER),
+    ("LIDAR rays", palette.RAY),
+    ("ray hit", palette.RAY_HIT),
 )
 """The lines of the track view and their colours, as the legend lists them."""
 
@@ -110,10 +99,10 @@ class FilmOverlay:
             pygame.Rect(self.track_width, 0, frame.shape[1] - self.track_width, frame.shape[0])
         )
         out.blit(panel, (self.view_size[0], 0))
-        self._label(out, counter, (self._pad, self._pad), self._font, TEXT)
+        self._label(out, counter, (self._pad, self._pad), self._font, palette.TEXT)
         self._legend(out)
         if banner is not None:
-            colour = POSITIVE if banner.startswith("finished") else NEGATIVE
+            colour = palette.POSITIVE if banner.startswith("finished") else palette.NEGATIVE
             text = self._banner_font.render(banner, True, colour)
             x = (self.view_size[0] - text.get_width()) // 2
             y = (self.view_size[1] - text.get_height()) // 2
@@ -135,7 +124,7 @@ class FilmOverlay:
             pygame.draw.line(
                 out, colour, (self._pad, middle), (self._pad + stroke, middle), max(2, row // 6)
             )
-            out.blit(self._font.render(name, True, TEXT_DIM), (2 * self._pad + stroke, y))
+            out.blit(self._font.render(name, True, palette.TEXT_DIM), (2 * self._pad + stroke, y))
             y += row
 
     def _label(
@@ -159,7 +148,7 @@ def draw_key_help(surface: pygame.Surface, text: str) -> None:
     """``text`` in one line at the bottom left of ``surface`` (the play window's key help)."""
     pygame.font.init()
     font = pygame.font.Font(None, max(12, surface.get_height() // 40))
-    image = font.render(text, True, TEXT)
+    image = font.render(text, True, palette.TEXT)
     pad = max(4, surface.get_height() // 100)
     box = pygame.Surface((image.get_width() + 2 * pad, image.get_height() + pad))
     box.set_alpha(170)
@@ -198,9 +187,14 @@ class HudLayout:
         indicator = round(36 * s)
         mini = width - 2 * self.pad
         box_h = (
-            self.pad + len(ROWS) * self.row_height + self.pad + indicator + self.pad + mini
+            self.pad
+            + len(ROWS) * self.row_height
             + self.pad
-        )  # fmt: skip
+            + indicator
+            + self.pad
+            + mini
+            + self.pad
+        )
         left, top = _corner(track_width, height, (width, box_h), track_bounds, s, kart)
         inner = left + self.pad
         y = top + self.pad
@@ -208,8 +202,9 @@ class HudLayout:
         y = text.bottom + self.pad
         throttle = pygame.Rect(inner, y, indicator, indicator)
         brake = pygame.Rect(throttle.right + self.pad, y, indicator, indicator)
-        steer = pygame.Rect(brake.right + self.pad, y, inner + mini - brake.right - self.pad,
-                            indicator)  # fmt: skip
+        steer = pygame.Rect(
+            brake.right + self.pad, y, inner + mini - brake.right - self.pad, indicator
+        )
         lidar = pygame.Rect(inner, throttle.bottom + self.pad, mini, mini)
         self.regions = {
             "box": pygame.Rect(left, top, width, box_h),
@@ -295,15 +290,17 @@ class Hud:
         for k, (label, value) in enumerate(zip(ROWS, self._values(), strict=True)):
             self._row(frame, regions["text"], k, label, value)
         throttle, steer = controls(env)
-        self._indicator(frame, regions["throttle"], "acc", POSITIVE if throttle > 0 else None)
-        self._indicator(frame, regions["brake"], "brk", NEGATIVE if throttle < 0 else None)
+        self._indicator(
+            frame, regions["throttle"], "acc", palette.POSITIVE if throttle > 0 else None
+        )
+        self._indicator(frame, regions["brake"], "brk", palette.NEGATIVE if throttle < 0 else None)
         self._steer(frame, regions["steer"], steer)
         self._lidar(frame, regions["lidar"])
 
     def draw_fps(self, frame: pygame.Surface) -> None:
         """The frame rate alone, top left of the track view (replay: many karts, no one's HUD)."""
         self._tick()
-        text = self._font.render(f"fps {self.fps:.0f}", True, TEXT)
+        text = self._font.render(f"fps {self.fps:.0f}", True, palette.TEXT)
         frame.blit(text, (self.layout.pad, self.layout.pad))
 
     def _tick(self) -> None:
@@ -333,8 +330,8 @@ class Hud:
         self, frame: pygame.Surface, area: pygame.Rect, k: int, label: str, value: str
     ) -> None:
         y = area.top + k * self.layout.row_height
-        frame.blit(self._font.render(label, True, TEXT_DIM), (area.left, y))
-        text = self._font.render(value, True, TEXT)
+        frame.blit(self._font.render(label, True, palette.TEXT_DIM), (area.left, y))
+        text = self._font.render(value, True, palette.TEXT)
         frame.blit(text, (area.right - text.get_width(), y))
 
     def _indicator(
@@ -343,25 +340,25 @@ class Hud:
         """A square lit in colour ``on`` (None: off, an outline), with its label."""
         if on is not None:
             pygame.draw.rect(frame, on, rect)
-        pygame.draw.rect(frame, PANEL_RULE, rect, 1)
-        text = self._font.render(label, True, SHADE if on is not None else TEXT_DIM)
+        pygame.draw.rect(frame, palette.PANEL_RULE, rect, 1)
+        text = self._font.render(label, True, SHADE if on is not None else palette.TEXT_DIM)
         frame.blit(text, text.get_rect(center=rect.center))
 
     def _steer(self, frame: pygame.Surface, rect: pygame.Rect, steer: float) -> None:
         """A bar with a marker at ``steer`` (-1 left .. 1 right) and a tick at the middle."""
-        pygame.draw.rect(frame, PANEL_RULE, rect, 1)
+        pygame.draw.rect(frame, palette.PANEL_RULE, rect, 1)
         middle = rect.centerx
-        pygame.draw.line(frame, TEXT_DIM, (middle, rect.top), (middle, rect.bottom - 1))
+        pygame.draw.line(frame, palette.TEXT_DIM, (middle, rect.top), (middle, rect.bottom - 1))
         half = rect.width // 2 - 4
         x = middle + round(steer * half)
         marker = pygame.Rect(0, 0, 6, rect.height - 6)
         marker.center = (x, rect.centery)
-        pygame.draw.rect(frame, CHECKPOINT_NEXT, marker)
+        pygame.draw.rect(frame, palette.CHECKPOINT_NEXT, marker)
 
     def _lidar(self, frame: pygame.Surface, rect: pygame.Rect) -> None:
         """The rays around the kart at the centre of ``rect``, heading up when egocentric."""
         env = self.env
-        pygame.draw.rect(frame, PANEL_RULE, rect, 1)
+        pygame.draw.rect(frame, palette.PANEL_RULE, rect, 1)
         cx, cy = rect.center
         radius = rect.width / 2 - 3
         turn = -math.pi / 2 - env.heading if env.egocentric else 0.0
@@ -370,10 +367,10 @@ class Hud:
         for (hx, hy), distance in zip(env.lidar_hits, env.lidar_distances, strict=True):
             dx, dy = (hx - px) / self._range_px, (hy - py) / self._range_px
             end = (cx + radius * (c * dx - s * dy), cy + radius * (s * dx + c * dy))
-            pygame.draw.aaline(frame, RAY, (cx, cy), end)
+            pygame.draw.aaline(frame, palette.RAY, (cx, cy), end)
             if distance < 1.0:
-                pygame.draw.circle(frame, RAY_HIT, end, 2)
-        pygame.draw.circle(frame, TEXT, (cx, cy), 3)
+                pygame.draw.circle(frame, palette.RAY_HIT, end, 2)
+        pygame.draw.circle(frame, palette.TEXT, (cx, cy), 3)
 
 
 def save_screenshot(surface: pygame.Surface, directory: Path | None = None) -> Path:

@@ -52,9 +52,14 @@ _ADDED_UNSET = ("route_clearance_m", "sim2real", "observation")
 so runs made before they existed still match."""
 
 SPEC_KEYS = (
-    "env", "track", "track_sha256", "action_mode", "action_space", "observation_layout",
+    "env",
+    "track",
+    "track_sha256",
+    "action_mode",
+    "action_space",
+    "observation_layout",
     "env_config",
-)  # fmt: skip
+)
 
 
 def make_env(

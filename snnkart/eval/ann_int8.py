@@ -104,8 +104,13 @@ def record_observations(run: LoadedRun, make_env: Callable[[], Any], seeds: rang
     return np.stack(recorder.observations)
 
 
-def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, episodes: int,
-              calibration_episodes: int = CALIBRATION_EPISODES) -> Int8Task:  # fmt: skip
+def int8_task(
+    run: LoadedRun,
+    make_env: Callable[[], Any],
+    first_seed: int,
+    episodes: int,
+    calibration_episodes: int = CALIBRATION_EPISODES,
+) -> Int8Task:
     """Quantise the run's actor and drive the episodes ``first_seed, ...``: the int8 ANN's
     task record (the report's ``ann.run.task.int8``)."""
     t0 = time.perf_counter()
@@ -122,16 +127,25 @@ def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, epis
         env.close()
     summary = EvalSummary.of(results)
     return {
-        "success_rate": summary.success_rate, "mean_lap_time": summary.mean_lap_time,
-        "mean_return": summary.mean_return, "episodes": episodes, "first_seed": first_seed,
+        "success_rate": summary.laps,
+        "mean_lap_time": summary.mean_lap_time,
+        "mean_return": summary.mean_return,
+        "episodes": episodes,
+        "first_seed": first_seed,
         "steps_per_episode": predictor.steps / episodes,
         "action_agreement": predictor.agreement,
         "agreement_rule": "the float ANN's action on the same observation, every step of the "
-        "int8 run: " + ("the same action" if run.policy.discrete
-                        else f"every component within {ACTION_TOLERANCE}"),
+        "int8 run: "
+        + (
+            "the same action"
+            if run.policy.discrete
+            else f"every component within {ACTION_TOLERANCE}"
+        ),
         "calibration": {
-            "first_seed": seeds.start, "episodes": len(seeds),
-            "observations": len(observations), "policy": "the float ANN, deterministic",
+            "first_seed": seeds.start,
+            "episodes": len(seeds),
+            "observations": len(observations),
+            "policy": "the float ANN, deterministic",
         },
         "scheme": "post-training int8, symmetric per tensor (weights, layer inputs and "
         "pre-activations), int32 accumulate, integer requantisation, "
@@ -145,7 +159,7 @@ def int8_task(run: LoadedRun, make_env: Callable[[], Any], first_seed: int, epis
             "CPU: the numpy int8 simulation and the torch float32 actor; not a model of a "
             "digital accelerator's latency",
         },
-    }  # fmt: skip
+    }
 
 
 def task_on(task: AnnRunTask | None, profile: str) -> Task | None:

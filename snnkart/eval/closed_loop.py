@@ -22,13 +22,13 @@ import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 from snnkart import faults
 from snnkart.backends.base import SpikeCounts
 from snnkart.backends.loading import open_policy
 from snnkart.backends.registry import BACKENDS
-from snnkart.backends.sdnn_counts import SigmaDeltaTotals
+from snnkart.backends.sigma_delta_counts import SigmaDeltaTotals
 from snnkart.contract.deploy_inputs import INPUTS_FILE, DeployInputs
 from snnkart.contract.deploy_record import (
     COUNTS_NOTE,
@@ -46,10 +46,11 @@ from snnkart.contract.deploy_record import (
     SigmaDeltaCounts,
     Timing,
 )
-from snnkart.contract.manifest import Manifest, ManifestError
+from snnkart.contract.manifest import ManifestError
+from snnkart.envs.constants import DT
 from snnkart.envs.tracks import track_label
 from snnkart.errors import DeployError, DeployWriteError, ParityError
-from snnkart.eval.episodes import EpisodeResult, EvalSummary, run_episodes
+from snnkart.eval.episodes import EpisodeResult, EvalSummary, describe_returns, run_episodes
 from snnkart.eval.parity import CheckedPredictor, check_parity, open_backends
 from snnkart.eval.policy_env import TrackChoice, make_policy_env, resolve_track
 from snnkart.eval.recorded import record_inputs, recorded_inputs
@@ -77,8 +78,8 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
     seed, out_dir = request.seed, request.out
     policy = open_policy(nir_path)  # fails fast on a bad file before starting Lava
     manifest = policy.manifest
-    choice = resolve_track(manifest, request.track)
-    gym_env = make_policy_env(manifest, request.env, choice.track)
+    choice = resolve_track(manifest, request.track)  # None: any gymnasium env, no track
+    gym_env = make_policy_env(manifest, request.env, None if choice is None else choice.track)
     if out_dir is not None:
         check_writable(out_dir)
     with contextlib.ExitStack() as stack:
@@ -92,22 +93,23 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
         keep = out_dir is not None and primary.records_inputs
         recorder = record_inputs(primary) if keep else None  # type: ignore[arg-type]
         run = _Run(CheckedPredictor(primary, exact, float32), time.perf_counter() - t0)
-        run.play(gym_env, request.episodes, seed, on_step, on_episode)
+        run.play(gym_env, request.episodes, seed, on_step, on_episode, _threshold(choice, manifest))
+    assert run.summary is not None  # play() ran
     record = DeployRecord(
         schema=DEPLOY_SCHEMA,
         backend=backend,
         precision=precision if backend == "lava-sim" else primary.arithmetic,
         nir_file=str(nir_path),
-        manifest=_manifest_summary(manifest),
+        manifest=ManifestSummary.of(manifest),
         network=policy.shape(),
-        env=EnvRecord(
-            env=gym_env.unwrapped.env_name,
-            **choice.record(),
-            track_label=choice.label,
-            action_mode=gym_env.unwrapped.action_mode,
-        ),
+        env=_env_record(gym_env, choice, manifest),
         first_seed=seed,
-        **run.results()._asdict(),
+        summary=run.summary,
+        counts=run.counts(),
+        counts_note=run.counts_note(),
+        parity=ParityRecord(**run.checked.parity.as_dict()),
+        timing=run.timing(),
+        quantization=run.quantization(),
         machine=Machine(python=platform.python_version(), machine=platform.machine()),
         versions=manifest.versions,
         episodes=run.per_episode,
@@ -119,15 +121,28 @@ def run_deploy(request: DeployRequest, on_episode: Any = None, on_step: Any = No
     return record
 
 
-class _Results(NamedTuple):
-    """What the episodes measured: the deploy record's fields of that name."""
+def _env_record(gym_env: Any, choice: TrackChoice | None, manifest: Any) -> EnvRecord:
+    """What the deploy record says of the env: a kart env's track, any other env's name."""
+    if choice is None:
+        fps = manifest.env.get("render_fps")  # the env's own rate, where it states one
+        return EnvRecord(
+            env=str(manifest.env.get("env")),
+            action_mode=manifest.action_mode,
+            control_hz=None if fps is None else float(fps),
+        )
+    return EnvRecord(
+        env=gym_env.unwrapped.env_name,
+        **vars(choice.record()),
+        track_label=choice.label,
+        action_mode=gym_env.unwrapped.action_mode,
+        control_hz=1.0 / DT,
+    )
 
-    summary: EvalSummary
-    counts: Counts
-    counts_note: str
-    parity: ParityRecord
-    timing: Timing
-    quantization: list[QuantLayer] | None
+
+def _threshold(choice: TrackChoice | None, manifest: Any) -> float | None:
+    """The env's ``reward_threshold`` (any gymnasium env that has one; a kart env has none)."""
+    value = manifest.env.get("reward_threshold") if choice is None else None
+    return None if value is None else float(value)
 
 
 class _Run:
@@ -139,7 +154,15 @@ class _Run:
         self.summary: EvalSummary | None = None
         self.wall = 0.0
 
-    def play(self, env: Any, episodes: int, seed: int, on_step: Any, on_episode: Any) -> None:
+    def play(
+        self,
+        env: Any,
+        episodes: int,
+        seed: int,
+        on_step: Any,
+        on_episode: Any,
+        reward_threshold: float | None = None,
+    ) -> None:
         primary = self.checked.primary
         before = _counts(primary.counts)
 
@@ -156,38 +179,25 @@ class _Run:
             env, self.checked, episodes, seed, on_step=on_step, on_episode=episode_done
         )
         self.wall = time.perf_counter() - wall
-        self.summary = EvalSummary.of(results)
+        self.summary = EvalSummary.of(results, reward_threshold)
 
-    def results(self) -> _Results:
-        """The record's summary, counts, parity, timing and quantisation."""
-        primary, steps = self.checked.primary, self.checked.parity.env_steps
-        assert self.summary is not None
-        quantization = None
-        if primary.fixed is not None:
-            quantization = [QuantLayer(**layer) for layer in primary.fixed.describe()]
-        return _Results(
-            summary=self.summary,
-            counts=_counts(primary.counts),
-            counts_note=COUNTS_NOTE if primary.float32_form else SIGMA_DELTA_COUNTS_NOTE,
-            parity=ParityRecord(**self.checked.parity.as_dict()),
-            timing=Timing(
-                startup_s=self.startup,
-                wall_s=self.wall,
-                ms_per_env_step=1000 * self.checked.step_seconds / max(steps, 1),
-            ),
-            quantization=quantization,
+    def counts(self) -> Counts:
+        return _counts(self.checked.primary.counts)
+
+    def counts_note(self) -> str:
+        return COUNTS_NOTE if self.checked.primary.float32_form else SIGMA_DELTA_COUNTS_NOTE
+
+    def timing(self) -> Timing:
+        steps = self.checked.parity.env_steps
+        return Timing(
+            startup_s=self.startup,
+            wall_s=self.wall,
+            ms_per_env_step=1000 * self.checked.step_seconds / max(steps, 1),
         )
 
-
-def _manifest_summary(manifest: Manifest) -> ManifestSummary:
-    return ManifestSummary(
-        num_steps=manifest.num_steps,
-        encoding=manifest.encoding,
-        population=manifest.population,
-        layers=manifest.layers,
-        action_mode=manifest.action_mode,
-        training=manifest.training,
-    )
+    def quantization(self) -> list[QuantLayer] | None:
+        fixed = self.checked.primary.fixed
+        return None if fixed is None else [QuantLayer(**layer) for layer in fixed.describe()]
 
 
 def _write(out_dir: Path, record: DeployRecord, inputs: DeployInputs | None) -> None:
@@ -216,22 +226,29 @@ def _counts(counts: SpikeCounts | SigmaDeltaTotals) -> Counts:
     c = counts.as_dict()
     over, sd = c.get("pipeline_overhead"), c.get("sigma_delta")
     return Counts(
-        env_steps=c["env_steps"], spikes=c["spikes"], synops=c["synops"],
+        env_steps=c["env_steps"],
+        spikes=c["spikes"],
+        synops=c["synops"],
         neuron_updates=c["neuron_updates"],
         pipeline_overhead=None if over is None else OverheadCounts(**over),
         sigma_delta=None if sd is None else SigmaDeltaCounts(**sd),
-    )  # fmt: skip
+    )
 
 
 def summary_lines(record: DeployRecord) -> list[str]:
     """What ``snnkart deploy`` prints."""
     s, p, c, t, e = record.summary, record.parity, record.counts, record.timing, record.env
     n = max(c.env_steps, 1)
-    lines = [
-        f"{record.backend} ({record.precision}) on {e.env}/{e.track_label or e.track}, "
-        f"{s.episodes} episodes: success {s.success_rate:.0%}, return {s.mean_return:.2f}, "
-        f"crashes {s.crashes}, time-outs {s.timeouts}",
-    ]
+    if s.success_rate is None:  # any gymnasium env
+        first = f"{record.backend} ({record.precision}) on {e.env}, {s.episodes} episodes: "
+        first += describe_returns(s)
+    else:
+        first = (
+            f"{record.backend} ({record.precision}) on {e.env}/{e.track_label or e.track}, "
+            f"{s.episodes} episodes: success {s.success_rate:.0%}, return {s.mean_return:.2f}, "
+            f"crashes {s.crashes}, time-outs {s.timeouts}"
+        )
+    lines = [first]
     if e.track_override and e.trained_track is not None:
         trained = e.trained_track
         lines.append(
@@ -262,8 +279,9 @@ def summary_lines(record: DeployRecord) -> list[str]:
         + "; synops "
         + _per_layer(c.synops, n, ".0f")
     )
-    o = c.pipeline_overhead or OverheadCounts([0] * len(c.spikes), [0] * len(c.spikes),
-                                              [0] * len(c.spikes))  # fmt: skip
+    o = c.pipeline_overhead or OverheadCounts(
+        [0] * len(c.spikes), [0] * len(c.spikes), [0] * len(c.spikes)
+    )
     lines.append(
         "pipeline overhead per env step (fill/drain, not the policy): spikes "
         + _per_layer(o.spikes, n, ".2f")

@@ -47,21 +47,46 @@ def run_episodes(
             faults.check()  # Ctrl-C/SIGTERM inside faults.caught() is taken here
             if terminated or truncated:
                 break
-        result = EpisodeResult(
-            seed=seed + k,
-            episode_return=total,
-            length=length,
-            finished=bool(info["lap_finished"]),
-            lap_time=info["lap_time"],
-            crashed=bool(info["crashed"]),
-            stood_still=bool(info["stood_still"]),
-            timed_out=bool(truncated),
-            checkpoints_passed=int(info["checkpoint"]) + int(bool(info["lap_finished"])),
-        )
+        result = _result(seed + k, total, length, bool(truncated), info)
         results.append(result)
         if on_episode is not None:
             on_episode(result)
     return results
 
 
-__all__ = ["EVAL_SCHEMA", "EpisodeResult", "EvalSummary", "Predictor", "run_episodes"]
+def _result(seed: int, total: float, length: int, truncated: bool, info: dict) -> EpisodeResult:
+    """The episode's result; a kart env's info says how the lap went, any other env's not."""
+    if "lap_finished" not in info:
+        return EpisodeResult(seed, total, length, None, None, None, None, truncated, None)
+    return EpisodeResult(
+        seed=seed,
+        episode_return=total,
+        length=length,
+        finished=bool(info["lap_finished"]),
+        lap_time=info["lap_time"],
+        crashed=bool(info["crashed"]),
+        stood_still=bool(info["stood_still"]),
+        timed_out=truncated,
+        checkpoints_passed=int(info["checkpoint"]) + int(bool(info["lap_finished"])),
+    )
+
+
+def describe_returns(summary: EvalSummary) -> str:
+    """Any gymnasium env's summary in words: return, NeuroBench's risk, solved or not."""
+    words = f"return {summary.mean_return:.2f} +- {summary.std_return:.2f}"
+    if summary.risk is not None:
+        words += f", risk {summary.risk:.2f} (worst 5 %)"
+    if summary.solved is not None:
+        verdict = "solved" if summary.solved else "not solved"
+        words += f", {verdict} (threshold {summary.reward_threshold:g})"
+    return words + f", time-outs {summary.timeouts}"
+
+
+__all__ = [
+    "EVAL_SCHEMA",
+    "EpisodeResult",
+    "EvalSummary",
+    "Predictor",
+    "describe_returns",
+    "run_episodes",
+]

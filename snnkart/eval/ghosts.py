@@ -57,10 +57,14 @@ class Recorded:
 
     def left_out(self) -> str:
         """What was not shown, as a line for the output ("" if nothing)."""
-        parts = [f"{n} {what} not shown" for n, what in (
-            (self.unfinished, "unfinished episodes (still running when training stopped)"),
-            (self.begun_before, "episodes begun before the first recorded rollout"),
-        ) if n]  # fmt: skip
+        parts = [
+            f"{n} {what} not shown"
+            for n, what in (
+                (self.unfinished, "unfinished episodes (still running when training stopped)"),
+                (self.begun_before, "episodes begun before the first recorded rollout"),
+            )
+            if n
+        ]
         return "; ".join(parts)
 
 
@@ -76,13 +80,38 @@ class GhostFrame:
     bar: ColourBar | None = None
 
 
-TRAJECTORY_KEYS = ("positions", "episode_end", "reset_positions", "first_positions",
-                   "episode_start")  # fmt: skip
+TRAJECTORY_KEYS = (
+    "positions",
+    "episode_end",
+    "reset_positions",
+    "first_positions",
+    "episode_start",
+)
+
+
+def _gymnasium_run(run_dir: Path) -> bool:
+    """Whether ``run_dir``'s config trained on any gymnasium env (not a kart env)."""
+    config = run_dir / "config.toml"
+    if not config.is_file():
+        return False
+    from snnkart.errors import SnnkartError
+    from snnkart.rl.config import read_run_config
+
+    try:
+        return not read_run_config(run_dir).kart
+    except (SnnkartError, ValueError):  # unreadable config: the trajectories message stands
+        return False
 
 
 def load_ghosts(run_dir: Path) -> Recorded:
     """Every episode recorded in ``run_dir/trajectories``, joined across rollouts."""
     files = sorted((Path(run_dir) / "trajectories").glob("iter_*.npz"))
+    if not files and _gymnasium_run(Path(run_dir)):
+        raise ReplayError(
+            f"{run_dir} trained on a gymnasium env: replay draws kart trajectories on a track; "
+            f"film the policy's episodes with its own render instead: snnkart eval {run_dir} "
+            "--video episodes.mp4"
+        )
     if not files:
         raise ReplayError(
             f"{run_dir} has no recorded trajectories (trajectories/iter_*.npz); "
@@ -160,11 +189,14 @@ def frames(ghosts: list[Ghost], mode: str, every: int = 1) -> Iterator[GhostFram
             yield GhostFrame(
                 np.asarray([group[i].positions[t] for i in alive]).reshape(-1, 2),
                 [colours[i] for i in alive],
-                [("iteration", label), ("karts", f"{len(alive)} / {len(group)}"),
-                 ("time", f"{t * DT:.2f} s")],
+                [
+                    ("iteration", label),
+                    ("karts", f"{len(alive)} / {len(group)}"),
+                    ("time", f"{t * DT:.2f} s"),
+                ],
                 GHOST_ALPHA,
                 bar,
-            )  # fmt: skip
+            )
 
 
 @dataclass

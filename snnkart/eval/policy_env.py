@@ -3,23 +3,14 @@ named with ``--track``) and the env its manifest describes, checked to fit the p
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, TypedDict
+from typing import Any
 
+from snnkart.contract.eval_record import TrackFields
 from snnkart.contract.manifest import Manifest
 from snnkart.envs.tracks import Track, track_label, track_sha256
 from snnkart.errors import DeployError
-
-
-class TrackRecord(TypedDict):
-    """The track a policy ran on, as deploy and eval records state it."""
-
-    track: str
-    track_given: str
-    track_source: str
-    track_sha256: str
-    trained_track: dict[str, str]
-    track_override: bool
 
 
 @dataclass(frozen=True)
@@ -40,23 +31,33 @@ class TrackChoice:
         label = track_label(self.track.name, self.given)
         return label[:-1] + ", embedded)" if self.source == "embedded" and "(" in label else label
 
-    def record(self) -> TrackRecord:
-        return {
-            "track": self.track.name,
-            "track_given": self.given,
-            "track_source": self.source,
-            "track_sha256": track_sha256(self.track),
-            "trained_track": self.trained,
-            "track_override": self.override,
-        }
+    def record(self) -> TrackFields:
+        """What the eval and deploy records state of the track."""
+        return TrackFields(
+            track=self.track.name,
+            track_given=self.given,
+            track_source=self.source,
+            track_sha256=track_sha256(self.track),
+            trained_track=self.trained,
+            track_override=self.override,
+        )
 
 
-def resolve_track(manifest: Manifest, track: str | None) -> TrackChoice:
+def resolve_track(manifest: Manifest, track: str | None) -> TrackChoice | None:
     """``--track`` if given (any track: evaluating elsewhere is a real use), else the track
-    embedded in the manifest, else (v1 manifests) the track the manifest names."""
+    embedded in the manifest, else (v1 manifests) the track the manifest names; None for a
+    policy of any gymnasium env (which has no track: ``--track`` is refused)."""
+    from snnkart.envs.task_env import is_gym_spec
     from snnkart.envs.tracks import TrackError, embedded_track, load_track
 
     spec = manifest.env
+    if is_gym_spec(spec):
+        if track is not None:
+            raise DeployError(
+                f"--track is for the kart envs; the policy was trained on the gymnasium env "
+                f"{spec.get('env')!r}: leave --track out"
+            )
+        return None
     if manifest.track:
         trained = {k: manifest.track[k] for k in ("name", "given", "sha256")}
     else:
@@ -91,9 +92,12 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
     ``track`` None: the manifest's own (see :func:`resolve_track`)."""
     from snnkart.envs import make, resolve_env_name
     from snnkart.envs.spec import fit_problem, revision_mismatch, trained_env_config
+    from snnkart.envs.task_env import is_gym_spec
     from snnkart.envs.tracks import TrackError
 
     spec = manifest.env
+    if is_gym_spec(spec):
+        return _gym_policy_env(manifest, env)
     mismatch = revision_mismatch(spec.get("revision"))
     if mismatch:
         raise DeployError(
@@ -108,7 +112,9 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
         where = "--env" if env else "the manifest's env"
         raise DeployError(f"{where}: {exc}") from exc
     if track is None or isinstance(track, str):
-        track = resolve_track(manifest, track).track
+        choice = resolve_track(manifest, track)
+        assert choice is not None  # a kart env's manifest
+        track = choice.track
     kwargs: dict[str, object] = {
         "track": track,
         "action_mode": spec.get("action_mode", manifest.action_mode),
@@ -125,3 +131,33 @@ def make_policy_env(manifest: Manifest, env: str | None, track: str | Track | No
         gym_env.close()
         raise DeployError(problem)
     return gym_env
+
+
+def _gym_policy_env(manifest: Manifest, env: str | None) -> Any:
+    """The gymnasium env the manifest records, made again from its spec (``env``: another id
+    or entry point), refused if its spaces are not the ones the policy was trained on (another
+    package version is a warning)."""
+    from snnkart.envs.resolve import resolve_env
+    from snnkart.envs.task_env import check_trained_on, gym_spec, rebuild
+    from snnkart.errors import EnvError
+
+    spec = dict(manifest.env)
+    if env is not None:
+        spec["name"] = env
+    try:
+        gym_env = rebuild(spec)
+        now = gym_spec(resolve_env(str(spec["name"])), gym_env, _kwargs(spec))
+    except EnvError as exc:
+        where = "--env" if env else "the manifest's env"
+        raise DeployError(f"{where}: {exc}") from exc
+    try:
+        check_trained_on(manifest.env, now, "run it on that env, or train on this one")
+    except EnvError as exc:
+        gym_env.close()
+        raise DeployError(str(exc)) from exc
+    return gym_env
+
+
+def _kwargs(spec: Mapping[str, object]) -> dict[str, object]:
+    kwargs = spec.get("kwargs")
+    return kwargs if isinstance(kwargs, dict) else {}

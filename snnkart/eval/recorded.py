@@ -59,11 +59,16 @@ def recorded_inputs(backend: Backend, recorder: RecordingEngine, first_seed: int
         else np.zeros((0, rows, n), dtype=bool)
     )
     return DeployInputs(
-        current=current, raster=raster,
+        current=current,
+        raster=raster,
         episode_starts=np.asarray(recorder.episode_starts, dtype=np.int64),
-        sizes=tuple(sizes), num_steps=engine.steps, depth=engine.depth, first_seed=first_seed,
-        arithmetic=backend.arithmetic, backend=backend.name,
-    )  # fmt: skip
+        sizes=tuple(sizes),
+        num_steps=engine.steps,
+        depth=engine.depth,
+        first_seed=first_seed,
+        arithmetic=backend.arithmetic,
+        backend=backend.name,
+    )
 
 
 def _compact(current: np.ndarray) -> np.ndarray:

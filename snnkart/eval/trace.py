@@ -22,8 +22,9 @@ class StepTrace:
     action: object
 
 
-def trace_step(nir_path: str | Path, env_step: int, seed: int = 0,
-               track: str | None = None) -> StepTrace:  # fmt: skip
+def trace_step(
+    nir_path: str | Path, env_step: int, seed: int = 0, track: str | None = None
+) -> StepTrace:
     """Drive the episode of ``seed`` with the policy in float32 (the trained arithmetic) and
     record its ``env_step``-th inference."""
     from snnkart.backends.reference import Float32Chain, NIRReference

@@ -63,7 +63,9 @@ BANNER_FRAMES = 8
 
 def outcome_banner(result: EpisodeResult) -> str:
     """The banner over a filmed episode's final frame: its outcome and return."""
-    if result.finished:
+    if result.finished is None:  # any gymnasium env: how it ended, nothing kart-specific
+        outcome = "time limit" if result.timed_out else "ended"
+    elif result.finished:
         outcome = f"finished in {result.lap_time:.2f} s"
     elif result.crashed:
         outcome = "crashed"
@@ -78,6 +80,8 @@ class Film:
     """Films the first ``filmed`` of ``episodes`` seeded episodes of an ``rgb_array`` env into
     ``writer``: every ``every``-th step, then the final step with its outcome banner held for
     :data:`BANNER_FRAMES` frames, all through one :class:`~snnkart.envs.overlay.FilmOverlay`.
+    Any other gymnasium env's frames are its own ``rgb_array`` render, as it draws them (no
+    overlay: it knows nothing of tracks), the final one held as long.
 
     Pass :meth:`on_step` and :meth:`on_episode` to :func:`~snnkart.eval.episodes.run_episodes`;
     ``on_frame`` is called after every written frame (a progress bar).
@@ -85,7 +89,7 @@ class Film:
 
     def __init__(
         self,
-        env: KartEnv,
+        env: KartEnv | Any,
         writer: Any,
         episodes: int,
         first_seed: int,
@@ -97,9 +101,13 @@ class Film:
         self.episodes, self.first_seed, self.filmed = episodes, first_seed, filmed
         self.episode = 0  # index of the episode being run
         self._overlay: FilmOverlay | None = None
+        self.kart = hasattr(env, "track")
+        self.steps = 0  # steps of the episode being run
 
     def on_step(self, env: Any) -> None:
-        if self.episode < self.filmed and self.env.episode_steps % self.every == 0:
+        self.steps += 1
+        steps = self.env.episode_steps if self.kart else self.steps
+        if self.episode < self.filmed and steps % self.every == 0:
             self._write(self._frame())
 
     def on_episode(self, result: EpisodeResult) -> None:
@@ -108,12 +116,15 @@ class Film:
             for _ in range(BANNER_FRAMES):
                 self._write(frame)
         self.episode += 1
+        self.steps = 0
 
     def _frame(self, banner: str | None = None) -> np.ndarray:
         from snnkart.envs.overlay import FilmOverlay
 
         raw = self.env.render()
         assert raw is not None, "a filmed env renders rgb_array frames"
+        if not self.kart:
+            return np.asarray(raw)
         if self._overlay is None:
             self._overlay = FilmOverlay(self.env.track, raw.shape, self.env.config.render_scale)
         counter = (

@@ -181,14 +181,20 @@ def calibrate(
     f, fraction, rejected = search(share, target)
     bits = [int(m).bit_length() + 1 for m in rec.state_max]  # + the sign bit
     calibration = {
-        "target": target, "fraction": fraction, "steps": rec.steps, "episodes": episodes,
-        "seed": seed, "tolerance": None if action_mode == "discrete" else CONTINUOUS_TOLERANCE,
-        "f": f, "f_rejected": rejected,
+        "target": target,
+        "fraction": fraction,
+        "steps": rec.steps,
+        "episodes": episodes,
+        "seed": seed,
+        "tolerance": None if action_mode == "discrete" else CONTINUOUS_TOLERANCE,
+        "f": f,
+        "f_rejected": rejected,
         "statistic": "mean activation per layer (integer units) over the recorded steps",
         "activation_mean": means,
-        "state_bits": bits, "state_bits_layers": ["input", *_names(block.layers), "readout"],
+        "state_bits": bits,
+        "state_bits_layers": ["input", *_names(block.layers), "readout"],
         "over_24_bits": max(bits) > 24,
-    }  # fmt: skip
+    }
     return replace(thresholds(block, f, means), calibration=calibration)
 
 

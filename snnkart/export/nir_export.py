@@ -15,11 +15,11 @@ import numpy as np
 
 from snnkart.contract.encoding import RATE_RNG, obs_std
 from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, manifest_path
-from snnkart.envs.spec import spec_hash
+from snnkart.contract.obs_node import OBS_NODE, with_obs_node
 from snnkart.errors import ExportError
+from snnkart.export.run_fields import run_fields
 from snnkart.io import atomic_path
 from snnkart.rl import kinds
-from snnkart.rl.checkpoint import versions
 from snnkart.rl.lif_nir import NIR_DT, check_exportable
 from snnkart.rl.trained import LoadedRun
 
@@ -44,6 +44,15 @@ def export_nir(run: LoadedRun, out: str | Path) -> tuple[Path, Path]:
     return _export_spiking(run, Path(out))
 
 
+def obs_bounds(policy: object) -> tuple[np.ndarray, np.ndarray]:
+    """The observation's bounds as the policy holds them (low and span), unbounded ones
+    (a gymnasium env's velocities) as infinities."""
+    low = np.asarray(policy.obs_low, dtype=np.float64)  # type: ignore[attr-defined]
+    span = np.asarray(policy.obs_span, dtype=np.float64)  # type: ignore[attr-defined]
+    with np.errstate(invalid="ignore"):
+        return low, np.where(np.isinf(span), np.inf, low + span)
+
+
 def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
     import nir
 
@@ -52,34 +61,28 @@ def _export_spiking(run: LoadedRun, out: Path) -> tuple[Path, Path]:
     graph, layers = exported.graph, exported.layers
     cfg = run.config
     rms = run.obs_rms
-    spec = run.meta["env_spec"]
-    low = np.asarray(policy.obs_low, dtype=np.float64)  # type: ignore[arg-type]
-    high = low + np.asarray(policy.obs_span, dtype=np.float64)  # type: ignore[arg-type]
+    low, high = obs_bounds(policy)
+    mean, std = rms.mean, obs_std(rms.var)
+    # the current encoding's graph takes the raw observation (contract/obs_node.py); the rate
+    # and population encodings take it raw already, scaled by the bounds
+    normalised = cfg.snn.encoding == "current"
+    if normalised:
+        graph = with_obs_node(graph, mean, std)
     manifest = Manifest(
         schema=MANIFEST_SCHEMA,
+        **run_fields(run, low, high),
         nir_file=out.name,
         nir_dt=NIR_DT,
         num_steps=cfg.snn.num_steps,
         layers=layers,
         encoding=cfg.snn.encoding,
-        obs_mean=tuple(float(x) for x in rms.mean),
-        obs_std=tuple(float(x) for x in obs_std(rms.var)),
-        obs_clip=cfg.ppo.clip_obs,
-        obs_low=tuple(float(x) for x in low),
-        obs_high=tuple(float(x) for x in high),
+        obs_mean=tuple(float(x) for x in mean),
+        obs_std=tuple(float(x) for x in std),
         readout_node=exported.readout_node,
-        action_mode=cfg.action_mode,
-        env={**spec, "env_spec_hash": spec_hash(spec)},
-        versions=versions(),
         encoding_rng=RATE_RNG if cfg.snn.encoding == "rate" else None,
         population=cfg.snn.population if cfg.snn.encoding == "population" else None,
         state_persists=policy.carries_state,
-        track=run.track_record() if run.track is not None else None,
-        training={
-            "run": str(run.run_dir),
-            "checkpoint": str(run.checkpoint),
-            "global_step": run.meta.get("global_step"),
-        },
+        obs_node=OBS_NODE if normalised else None,
     )
     # Mirrored for information only: backends read the manifest file, never NIR metadata.
     graph.metadata = {"snnkart_manifest": manifest.to_json()}

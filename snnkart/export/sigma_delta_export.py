@@ -6,7 +6,7 @@ the weights and biases **as trained** (float32, not fake-quantised): the block's
 integer weights (``round(W s_{l-1} / s_l)``, :func:`snnkart.backends.sigma_delta.spec_from_block`),
 and rounding the raw weights gives exactly the integers the sdnn actor trained with, which
 rounding already-quantised float32 values would not always do. The units follow
-:func:`snnkart.rl.sdnn.layer_units` for both origins (for an ANN, from its trained weights);
+:func:`snnkart.rl.sigma_delta.layer_units` for both origins (for an ANN, from its trained weights);
 the thresholds come from :func:`snnkart.export.calibrate.calibrate`.
 """
 
@@ -21,13 +21,13 @@ import numpy as np
 
 from snnkart.contract.encoding import normalise, obs_std
 from snnkart.contract.manifest import MANIFEST_SCHEMA, Manifest, manifest_path
+from snnkart.contract.obs_node import OBS_NODE, with_obs_node
 from snnkart.contract.sigma_delta import SigmaDeltaBlock, SigmaDeltaLayer
-from snnkart.envs.spec import spec_hash
 from snnkart.errors import ExportError
 from snnkart.export.calibrate import AffineLayers, calibrate
+from snnkart.export.run_fields import action_mode, run_fields
 from snnkart.io import atomic_path
-from snnkart.rl.checkpoint import versions
-from snnkart.rl.sdnn import input_scale, layer_units
+from snnkart.rl.sigma_delta import input_scale, layer_units
 from snnkart.rl.trained import LoadedRun
 
 NIR_DT = 1e-4
@@ -94,31 +94,36 @@ def export_sigma_delta(
     env = cfg.make_env(track=run.track)
     try:
         block = calibrate(
-            block, net, env, lambda obs: normalise(obs, mean, std, cfg.ppo.clip_obs),
-            cfg.action_mode,
+            block,
+            net,
+            env,
+            lambda obs: normalise(obs, mean, std, cfg.ppo.clip_obs),
+            action_mode(cfg.action_mode, run.meta["env_spec"]),
             options.target if options.target is not None else cfg.sdnn.calibration_target,
             options.episodes if options.episodes is not None else cfg.sdnn.calibration_episodes,
             cfg.sdnn.calibration_seed,
-        )  # fmt: skip
+        )
         space = env.observation_space
         assert isinstance(space, gym.spaces.Box)
         low, high = space.low, space.high
     finally:
         env.close()
     out = Path(out)
-    spec = run.meta["env_spec"]
     manifest = Manifest(
-        schema=MANIFEST_SCHEMA, nir_file=out.name, nir_dt=NIR_DT, num_steps=1, layers=(),
-        encoding="delta", obs_mean=tuple(float(x) for x in mean),
-        obs_std=tuple(float(x) for x in std), obs_clip=cfg.ppo.clip_obs,
-        obs_low=tuple(float(x) for x in low), obs_high=tuple(float(x) for x in high),
-        readout_node=block.readout_node, action_mode=cfg.action_mode,
-        env={**spec, "env_spec_hash": spec_hash(spec)}, versions=versions(),
-        track=run.track_record() if run.track is not None else None,
-        training={"run": str(run.run_dir), "checkpoint": str(run.checkpoint),
-                  "global_step": run.meta.get("global_step")},
-        state_persists=True, sigma_delta=block,
-    )  # fmt: skip
+        schema=MANIFEST_SCHEMA,
+        **run_fields(run, low, high),
+        nir_file=out.name,
+        nir_dt=NIR_DT,
+        num_steps=1,
+        layers=(),
+        encoding="delta",
+        obs_mean=tuple(float(x) for x in mean),
+        obs_std=tuple(float(x) for x in std),
+        readout_node=block.readout_node,
+        state_persists=True,
+        sigma_delta=block,
+        obs_node=OBS_NODE,
+    )
     _write(out, net, manifest)
     mpath = manifest_path(out)
     manifest.write(mpath)
@@ -139,6 +144,8 @@ def _write(out: Path, net: AffineLayers, manifest: Manifest) -> None:
         nodes[name] = nir.Affine(weight=w, bias=b)
     chain = ["input", *names, "output"]
     graph = nir.NIRGraph(nodes=nodes, edges=list(itertools.pairwise(chain)))
+    # the graph takes the raw observation (contract/obs_node.py)
+    graph = with_obs_node(graph, np.asarray(manifest.obs_mean), np.asarray(manifest.obs_std))
     graph.metadata = {"snnkart_manifest": manifest.to_json()}
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(out) as tmp:

@@ -5,13 +5,15 @@ from __future__ import annotations
 
 import base64
 import html
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from snnkart.contract.report_record import DeploySection, LifReport, lif_report
 from snnkart.io import write_bytes, write_json, write_text
 from snnkart.report import first_screen as first
-from snnkart.report import plots
-from snnkart.report import sd_document as sd
+from snnkart.report import sigma_delta_document as sd
+from snnkart.report.document_figures import figures
 from snnkart.report.ledger import ledger, price_rows
 from snnkart.report.sanafe_page import TITLE as SANAFE_TITLE
 from snnkart.report.sanafe_page import sanafe_lines, sanafe_rows
@@ -19,7 +21,7 @@ from snnkart.report.texts import (
     INCLUDES,
     LEAVES_OUT,
     REFERENCES,
-    deployment_opening,
+    deployment,
     not_driving,
 )
 
@@ -37,116 +39,82 @@ def _uj(pj: float | None) -> str:
     return "-" if pj is None else f"{pj / 1e6:.3g}"
 
 
-def _parity(deploy: dict[str, Any]) -> str:
+def _parity(deploy: DeploySection) -> str:
     """How the deployment's counts were cross-checked (deploy.json's parity)."""
     p = deploy.get("parity") or {}
     ref = p.get("same_arithmetic_reference")
     if not ref:
         return "The counts are the reference's own."
-    return (f"Every env step's spike raster was checked against the {ref} reference: "
-            f"{p.get('same_arithmetic_mismatched_windows')} of {p.get('env_steps')} differ.")  # fmt: skip
+    return (
+        f"Every env step's spike raster was checked against the {ref} reference: "
+        f"{p.get('same_arithmetic_mismatched_windows')} of {p.get('env_steps')} differ."
+    )
 
 
-def headline(report: dict[str, Any]) -> list[dict[str, str]]:
+def headline(data: Mapping[str, object]) -> list[dict[str, str]]:
     """The energy table's rows: each SNN profile against each ANN on each digital profile,
-    with both tasks; same-width ANN rows equal to the ANN run's are merged into them."""
+    with both tasks; same-width ANN rows equal to the ANN run's are merged into them (a LIF
+    report: ``report.json`` as read, or as built)."""
+    report = lif_report(data)
     snn_task = report["snn"]["task"]
     rows = []
     for c in first.distinct(report):
-        rows.append({
-            "SNN on": c["snn_profile"], "SNN nJ/inference": _nj(c["snn_pj"]),
-            "ANN": report["ann"][c["ann"]]["label"], "ANN on": c["ann_profile"],
-            "ANN nJ/inference": _nj(c["ann_pj"]),
-            "SNN/ANN": f"{c['ratio']:.3g}" if c["ratio"] is not None else "-",
-            "SNN µJ/episode": f"{c['snn_per_episode_pj'] / 1e6:.3g}",
-            "ANN µJ/episode": _uj(c["ann_per_episode_pj"]),
-            "SNN µJ/return": _uj(c["snn_per_return_pj"]),
-            "ANN µJ/return": _uj(c["ann_per_return_pj"]),
-            "SNN success": first.pct(snn_task["success_rate"]),
-            "ANN success": first.ann_success(report, c),
-        })  # fmt: skip
+        rows.append(
+            {
+                "SNN on": c["snn_profile"],
+                "SNN nJ/inference": _nj(c["snn_pj"]),
+                "ANN": report["ann"][c["ann"]]["label"],
+                "ANN on": c["ann_profile"],
+                "ANN nJ/inference": _nj(c["ann_pj"]),
+                "SNN/ANN": f"{c['ratio']:.3g}" if c["ratio"] is not None else "-",
+                "SNN µJ/episode": f"{c['snn_per_episode_pj'] / 1e6:.3g}",
+                "ANN µJ/episode": _uj(c["ann_per_episode_pj"]),
+                "SNN µJ/return": _uj(c["snn_per_return_pj"]),
+                "ANN µJ/return": _uj(c["ann_per_return_pj"]),
+                "SNN success": first.pct(snn_task["success_rate"]),
+                "ANN success": first.ann_success(report, c),
+            }
+        )
     return rows
 
 
-def _int8(report: dict[str, Any]) -> str:
+def _int8(report: LifReport) -> str:
     """What the int8 ANN did on the deployment's episodes, if it was run."""
     run = report["ann"].get("run")
-    q = (run.get("task") or {}).get("int8") if run else None
+    task = run["task"] if run else None
+    q = task.get("int8") if task else None
     if not q:
         return ""
     agree = q["action_agreement"]
-    return (f" The ANN run quantised to int8 (post-training, symmetric per tensor, calibrated "
-            f"on {q['calibration']['observations']} observations of {q['calibration']['episodes']} "
-            f"other episodes) was driven on the same episodes: success {first.pct(q['success_rate'])} "
-            f"(measured), mean return {q['mean_return']:.2f}, "
-            f"{'-' if agree is None else f'{agree:.1%}'} of its actions equal the float "
-            "ANN's; the int8 profiles' rows carry its task.")  # fmt: skip
+    return (
+        f" The ANN run quantised to int8 (post-training, symmetric per tensor, calibrated "
+        f"on {q['calibration']['observations']} observations of {q['calibration']['episodes']} "
+        f"other episodes) was driven on the same episodes: success {first.pct(q['success_rate'])} "
+        f"(measured), mean return {q['mean_return']:.2f}, "
+        f"{'-' if agree is None else f'{agree:.1%}'} of its actions equal the float "
+        "ANN's; the int8 profiles' rows carry its task."
+    )
 
 
-def _figures(report: dict[str, Any], trace: Any) -> dict[str, bytes]:
-    if report.get("kind") == "sigma-delta":
-        figs = sd.figures(report)
-        if report.get("sweep"):
-            sw = report["sweep"]
-            figs["tradeoff"] = plots.tradeoff(sw["points"], sw["ann_64_64_pj"], sw["profile"],
-                                              _sweep_title(sw))  # fmt: skip
-        return figs
-    snn, net, d = report["snn"], report["network"], report["deploy"]
-    figs = {"verdict": plots.verdict(first.chart_rows(report), first.chart_legend(report)),
-            "firing_rates": plots.firing_rates(snn["per_inference"]["firing_rates"], net["sizes"])}  # fmt: skip
-    sens = report["sensitivity"][0]
-    target = sens["ann_profile"]  # the fair baseline: the first memory-inclusive target
-    energies: dict[str, dict[str, float]] = {}
-    for c in first.pairs(report):
-        if c["ann_profile"] == target:
-            energies[f"SNN on {c['snn_profile']} (host on {target})"] = c["snn_breakdown_pj"]
-    for c in first.pairs(report):
-        energies.setdefault(f"ANN on {c['ann_profile']}", c["ann_breakdown_pj"])
-    figs["breakdown"] = plots.breakdown(energies)
-    main = next(c for c in report["comparisons"] if c["snn_profile"] == sens["snn_profile"]
-                and c["ann_profile"] == target and c["ann"] == "same_width")  # fmt: skip
-    be = main["break_even"]
-    fixed, var, ann_pj = be["fixed_pj"], be["per_density_pj"], be["ann_pj"]
-    curve = [(x / 20, (fixed + x / 20 * var) / ann_pj) for x in range(41)]
-    title = (f"One price at a time: SNN on {sens['snn_profile']} vs same-width ANN on {target} "
-             f"(ratio {main['ratio']:.3g}x)")  # fmt: skip
-    figs["sensitivity"] = plots.sensitivity(sens["rows"], curve, be.get("density"), title)
-    if report.get("sweep"):
-        sw = report["sweep"]
-        figs["tradeoff"] = plots.tradeoff(sw["points"], sw["ann_64_64_pj"], sw["profile"],
-                                          _sweep_title(sw))  # fmt: skip
-    if trace is not None:
-        figs["raster"] = plots.raster(
-            trace.raster, trace.membranes, trace.sizes, trace.thresholds,
-            f"env step {trace.env_step} of the episode of seed {trace.seed}, traced on the "
-            f"float32 reference (the deployment ran {d['backend']}, {d['precision']}); action "
-            f"{trace.action}",
-        )  # fmt: skip
-    return figs
-
-
-def _sweep_title(sweep: dict[str, Any]) -> str:
-    commit = f" at commit {sweep['commit']}" if sweep.get("commit") else ""
-    return (f"Not this deployment: the runs of the sweep {Path(sweep['file']).name}{commit} "
-            f"({sweep['env']}), priced on {sweep['profile']}")  # fmt: skip
-
-
-def _counts_rows(report: dict[str, Any]) -> list[dict[str, str]]:
+def _counts_rows(report: LifReport) -> list[dict[str, str]]:
     """Per layer: the policy's counts, the pipeline's fill/drain counts, and the neuron updates
     priced (both)."""
     per, sizes = report["snn"]["per_inference"], report["network"]["sizes"]
     extra = per["pipeline_overhead"]
     return [
-        {"layer": f"{i + 1} ({n})", "spikes / inference": f"{per['spikes'][i]:.1f}",
-         "firing rate": f"{100 * per['firing_rates'][i]:.1f} %",
-         "synaptic ops (chip)": f"{per['synops_chip'][i]:.0f}",
-         "neuron updates": f"{per['neuron_updates'][i]:.0f}",
-         "fill/drain spikes": f"{extra['spikes'][i]:.2f}",
-         "fill/drain synaptic ops": f"{extra['synops_chip'][i]:.0f}",
-         "fill/drain neuron updates": f"{extra['neuron_updates'][i]:.0f}",
-         "neuron updates priced": f"{per['neuron_updates'][i] + extra['neuron_updates'][i]:.0f}"}
+        {
+            "layer": f"{i + 1} ({n})",
+            "spikes / inference": f"{per['spikes'][i]:.1f}",
+            "firing rate": f"{100 * per['firing_rates'][i]:.1f} %",
+            "synaptic ops (chip)": f"{per['synops_chip'][i]:.0f}",
+            "neuron updates": f"{per['neuron_updates'][i]:.0f}",
+            "fill/drain spikes": f"{extra['spikes'][i]:.2f}",
+            "fill/drain synaptic ops": f"{extra['synops_chip'][i]:.0f}",
+            "fill/drain neuron updates": f"{extra['neuron_updates'][i]:.0f}",
+            "neuron updates priced": f"{per['neuron_updates'][i] + extra['neuron_updates'][i]:.0f}",
+        }
         for i, n in enumerate(sizes)
-    ]  # fmt: skip
+    ]
 
 
 FACT_GROUPS = (
@@ -155,9 +123,14 @@ FACT_GROUPS = (
     ("footprint", "footprint"),
     ("latency", "latency"),
 )
-FACT_NAMES = {"parameters": "weights and biases", "parameter_bytes_fp32": "weight and bias "
-              "bytes (fp32)", "host_macs": "host MACs", "effective_macs": "effective MACs",
-              "effective_acs": "effective ACs", "ms_per_env_step": "ms per env step"}  # fmt: skip
+FACT_NAMES = {
+    "parameters": "weights and biases",
+    "parameter_bytes_fp32": "weight and bias bytes (fp32)",
+    "host_macs": "host MACs",
+    "effective_macs": "effective MACs",
+    "effective_acs": "effective ACs",
+    "ms_per_env_step": "ms per env step",
+}
 
 
 def _num(value: Any) -> str:
@@ -169,13 +142,19 @@ def _num(value: Any) -> str:
     return f"{value:,.0f}" if abs(value) >= 1000 else f"{value:.3g}"
 
 
-def _facts_rows(report: dict[str, Any]) -> list[dict[str, str]]:
+def _facts_rows(report: LifReport) -> list[dict[str, str]]:
     """The SNN's deployed counts, NeuroBench's metrics, footprint and latency, one per row."""
     snn = report["snn"]
+    facts: dict[str, Mapping[str, object]] = {
+        "deployed": snn["deployed"],
+        "neurobench": snn["neurobench"],
+        "footprint": snn["footprint"],
+        "latency": snn["latency"],
+    }
     return [
         {"": group, "quantity": FACT_NAMES.get(key, key.replace("_", " ")), "value": _num(value)}
         for section, group in FACT_GROUPS
-        for key, value in snn[section].items()
+        for key, value in facts[section].items()
     ]
 
 
@@ -184,7 +163,7 @@ def _density(d: float) -> str:
     return f"{d:.2f}x" if d >= 0.1 else f"{d:.2g}x"
 
 
-def _verdict(report: dict[str, Any]) -> list[str]:
+def _verdict(report: LifReport) -> list[str]:
     """One line per neuromorphic profile: the SNN's energy as a multiple of the primary ANN's on
     each digital profile, and the break-even spike density where there is one."""
     key = first.primary(report)
@@ -196,8 +175,9 @@ def _verdict(report: dict[str, Any]) -> list[str]:
             if c["ann"] != key or c["snn_profile"] != chip or c["ratio"] is None:
                 continue
             be = c["break_even"]
-            if be.get("density") is not None:
-                note = f"wins below {_density(be['density'])} today's spikes"
+            density = be.get("density")
+            if density is not None:
+                note = f"wins below {_density(density)} today's spikes"
             elif be["fixed_pj"] >= be["ann_pj"]:
                 note = "cannot win at any spike rate"
             else:  # its energy does not grow with its spikes and is below the ANN's
@@ -226,62 +206,101 @@ REPORT_FILES = ("report.json", "report.md", "report.html", *(f"{name}.png" for n
 """Every file :func:`write_report` may write."""
 
 
-def _first_section(report: dict[str, Any]) -> list[Block]:
+def _first_section(report: LifReport) -> list[Block]:
     """What the first screen holds: a warning if the SNN does not drive, the verdict sentence
     and its chart."""
     blocks: list[Block] = []
     if not report["drives"]:
         success = first.pct(report["snn"]["task"]["success_rate"])
-        blocks.append(not_driving("the spiking policy", success))
+        blocks.append(not_driving("the spiking policy", success, report))
     blocks.append({"kind": "p", "id": "verdict", "text": first.sentence(report)})
     blocks.append({"kind": "figure", "name": "verdict"})
     return blocks
 
 
-def _deployment(report: dict[str, Any]) -> str:
-    d, net = report["deploy"], report["network"]
+def _deployment(report: LifReport) -> str:
+    steps = report["network"]["num_steps"]
     return (
-        f"{deployment_opening(d)} Network "
-        f"{net['n_in']} -> {net['sizes']} -> {net['n_out']}, T = {net['num_steps']}. Host work "
-        f"priced on {report['host_profile']}. {_parity(d)}{_int8(report)}"
+        f"{deployment(report, 'Network', f'T = {steps}')} "
+        f"{_parity(report['deploy'])}{_int8(report)}"
         + (f" Stateful: {report['state']['note']}." if report.get("state") else "")
     )
 
 
-def sections(report: dict[str, Any], figure_names: list[str]) -> list[Section]:
-    """The page, in order; the first section (untitled) is the first screen."""
-    if report.get("kind") == "sigma-delta":
-        return sd.sections(report, figure_names)
+def _pairs_section(report: LifReport) -> Section:
+    """The verdict per pair: its table, what dynamic and static mean, and one line per chip."""
+    return (
+        "Verdict per pair",
+        [
+            {"kind": "table", "id": "pairs", "rows": first.pair_rows(report)},
+            {
+                "kind": "p",
+                "text": f"Dynamic: the chip's and the host's operations only. With "
+                "static: plus each side's published static power over the control period "
+                f"({first.pairs(report)[0]['static']['note']}). Intervals: "
+                f"{report['uncertainty']['rule']}.",
+            },
+            {"kind": "ul", "items": _verdict(report)},
+        ],
+    )
+
+
+def sections(data: Mapping[str, object], figure_names: list[str]) -> list[Section]:
+    """The page, in order (of either family's report); the first section (untitled) is the
+    first screen."""
+    if data.get("kind") == "sigma-delta":
+        return sd.sections(dict(data), figure_names)
+    report = lif_report(data)
     merged = first.merged_note(report)
     return [
         ("", _first_section(report)),
-        ("Verdict per pair", [
-            {"kind": "table", "id": "pairs", "rows": first.pair_rows(report)},
-            {"kind": "p", "text": f"Dynamic: the chip's and the host's operations only. With "
-             "static: plus each side's published static power over the control period "
-             f"({first.pairs(report)[0]['static']['note']}). Intervals: "
-             f"{report['uncertainty']['rule']}."},
-            {"kind": "ul", "items": _verdict(report)}]),
+        _pairs_section(report),
         ("Deployment", [{"kind": "p", "text": _deployment(report)}]),
-        ("Energy per inference and per episode, with the task", [
-            {"kind": "table", "id": "headline", "rows": headline(report)},
-            *([{"kind": "p", "text": merged}] if merged else [])]),
-        ("Counts per inference (measured)", [
-            {"kind": "table", "id": "counts", "rows": _counts_rows(report)}]),
-        ("Totals, footprint and latency", [
-            {"kind": "table", "id": "facts", "rows": _facts_rows(report)}]),
-        ("Prices", [{"kind": "details", "summary": "Every price used: value, range, evidence "
-                     "tag, source", "id": "prices", "rows": price_rows(report)}]),
-        ("Ledger: every term, count x price", [
-            {"kind": "details", "summary": title, "id": f"ledger-{k}", "rows": rows}
-            for k, (title, rows) in enumerate(ledger(report))]),
+        (
+            "Energy per inference and per episode, with the task",
+            [
+                {"kind": "table", "id": "headline", "rows": headline(report)},
+                *([{"kind": "p", "text": merged}] if merged else []),
+            ],
+        ),
+        (
+            "Counts per inference (measured)",
+            [{"kind": "table", "id": "counts", "rows": _counts_rows(report)}],
+        ),
+        (
+            "Totals, footprint and latency",
+            [{"kind": "table", "id": "facts", "rows": _facts_rows(report)}],
+        ),
+        (
+            "Prices",
+            [
+                {
+                    "kind": "details",
+                    "summary": "Every price used: value, range, evidence tag, source",
+                    "id": "prices",
+                    "rows": price_rows(report),
+                }
+            ],
+        ),
+        (
+            "Ledger: every term, count x price",
+            [
+                {"kind": "details", "summary": title, "id": f"ledger-{k}", "rows": rows}
+                for k, (title, rows) in enumerate(ledger(report))
+            ],
+        ),
         ("Figures", [{"kind": "figure", "name": n} for n in figure_names if n != "verdict"]),
-        (SANAFE_TITLE, [{"kind": "ul", "items": sanafe_lines(report)},
-                        {"kind": "table", "id": "sanafe", "rows": sanafe_rows(report)}]),
+        (
+            SANAFE_TITLE,
+            [
+                {"kind": "ul", "items": sanafe_lines(report)},
+                {"kind": "table", "id": "sanafe", "rows": sanafe_rows(report)},
+            ],
+        ),
         ("What the estimate includes", [{"kind": "ul", "items": list(INCLUDES)}]),
         ("What it leaves out", [{"kind": "ul", "items": list(LEAVES_OUT)}]),
         ("References", [{"kind": "ul", "items": list(REFERENCES)}]),
-    ]  # fmt: skip
+    ]
 
 
 def md_table(rows: list[dict[str, str]]) -> str:
@@ -310,7 +329,7 @@ def _md_block(block: Block) -> list[str]:
     return [f"![{caption}]({block['name']}.png)", ""]
 
 
-def markdown(report: dict[str, Any], figure_names: list[str]) -> str:
+def markdown(report: Mapping[str, object], figure_names: list[str]) -> str:
     out = ["# snnkart energy report", ""]
     for title, blocks in sections(report, figure_names):
         out += [f"## {title}", ""] if title else []
@@ -341,12 +360,16 @@ def _html_block(block: Block, figs: dict[str, bytes]) -> str:
     if kind == "table":
         return _html_table(block["rows"], block["id"])
     if kind == "details":
-        return (f"<details><summary>{html.escape(block['summary'])}</summary>"
-                f"{_html_table(block['rows'], block['id'])}</details>")  # fmt: skip
+        return (
+            f"<details><summary>{html.escape(block['summary'])}</summary>"
+            f"{_html_table(block['rows'], block['id'])}</details>"
+        )
     name = block["name"]
-    return (f'<figure id="fig-{name}"><img alt="{name}" src="data:image/png;base64,'
-            f'{base64.b64encode(figs[name]).decode()}"><figcaption>{html.escape(block.get("caption") or CAPTIONS[name])}'
-            "</figcaption></figure>")  # fmt: skip
+    return (
+        f'<figure id="fig-{name}"><img alt="{name}" src="data:image/png;base64,'
+        f'{base64.b64encode(figs[name]).decode()}"><figcaption>{html.escape(block.get("caption") or CAPTIONS[name])}'
+        "</figcaption></figure>"
+    )
 
 
 CSS = """body{font-family:sans-serif;max-width:1150px;margin:.6em auto;color:#222}
@@ -357,7 +380,7 @@ padding:.6em;font-weight:bold}figure{margin:.4em 0}img{max-width:100%}summary{cu
 #prices td:last-child,#prices td:nth-child(2){text-align:left}"""
 
 
-def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
+def html_page(report: Mapping[str, object], figs: dict[str, bytes]) -> str:
     body = []
     for title, blocks in sections(report, list(figs)):
         body += [f"<h2>{html.escape(title)}</h2>"] if title else []
@@ -369,9 +392,9 @@ def html_page(report: dict[str, Any], figs: dict[str, bytes]) -> str:
     )
 
 
-def write_report(report: dict[str, Any], out: Path, trace: Any = None) -> dict[str, Path]:
-    """Write the report's files into ``out``; return their paths."""
-    figs = _figures(report, trace)
+def write_report(report: Mapping[str, object], out: Path, trace: Any = None) -> dict[str, Path]:
+    """Write the report's files (either family's) into ``out``; return their paths."""
+    figs = figures(dict(report), trace)
     report = {**report, "figures": sorted(f"{name}.png" for name in figs)}
     paths = {"json": out / "report.json", "md": out / "report.md", "html": out / "report.html"}
     write_json(paths["json"], report)

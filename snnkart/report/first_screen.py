@@ -96,8 +96,14 @@ def sentence(report: Mapping[str, object]) -> str:
 
 def _unpublished(rows: list[ComparisonRow]) -> str:
     """Whose static power the with-static count leaves at 0 (not published), said inline."""
-    missing = sorted({n["profile"] for c in rows for n in c["static"].get("not_published", [])
-                      if n["op"] == "static_power"})  # fmt: skip
+    missing = sorted(
+        {
+            n["profile"]
+            for c in rows
+            for n in c["static"].get("not_published", [])
+            if n["op"] == "static_power"
+        }
+    )
     if not missing:
         return ""
     return f" (not published, so counted as 0, for {', '.join(missing)})"
@@ -110,14 +116,16 @@ def chart_rows(report: Mapping[str, object]) -> list[ChartRow]:
     rows: list[ChartRow] = []
     for c in pairs(report):
         u = c["uncertainty"]
-        rows.append({
-            "label": f"SNN on {graded(report, c['snn_profile'])}\n"
-                     f"vs ANN on {graded(report, c['ann_profile'])}",
-            "ann_success": ann_success(report, c),
-            "snn_nj": _nj_point(c["snn_pj"], u["snn_pj"]),
-            "ann_nj": _nj_point(c["ann_pj"], u["ann_pj"]),
-            "p": _p(c),
-        })  # fmt: skip
+        rows.append(
+            {
+                "label": f"SNN on {graded(report, c['snn_profile'])}\n"
+                f"vs ANN on {graded(report, c['ann_profile'])}",
+                "ann_success": ann_success(report, c),
+                "snn_nj": _nj_point(c["snn_pj"], u["snn_pj"]),
+                "ann_nj": _nj_point(c["ann_pj"], u["ann_pj"]),
+                "p": _p(c),
+            }
+        )
     return rows
 
 
@@ -125,8 +133,10 @@ def chart_legend(report: Mapping[str, object]) -> tuple[str, str]:
     """The chart's two series: the SNN with its success, the ANN with its label."""
     lif = lif_report(report)
     label = lif["ann"][primary(report)]["label"]
-    return (f"SNN (success {pct(lif['snn']['task']['success_rate'])})",
-            f"{label} (success at the right)")  # fmt: skip
+    return (
+        f"SNN (success {pct(lif['snn']['task']['success_rate'])})",
+        f"{label} (success at the right)",
+    )
 
 
 def _band(energy: Spread) -> tuple[float, float]:
@@ -160,18 +170,21 @@ def pair_rows(report: Mapping[str, object]) -> list[dict[str, str]]:
     rows = []
     for c in pairs(report):
         u, r = c["uncertainty"], c["uncertainty"]["ratio"]
-        rows.append({
-            "SNN on": graded(report, c["snn_profile"]),
-            "ANN on": graded(report, c["ann_profile"]),
-            "SNN nJ (90 %)": _nj_band(c["snn_pj"], u["snn_pj"]),
-            "ANN nJ (90 %)": _nj_band(c["ann_pj"], u["ann_pj"]),
-            "SNN/ANN median (90 %), dynamic": "-" if r["median"] is None else
-            f"{times(r['median'])} ({times(r['p05'])}-{times(r['p95'])})",
-            "P(SNN cheaper)": f"{_p(c):.2f}",
-            "SNN/ANN with static": times(c["static"]["ratio"]),
-            "SNN success": snn_ok,
-            "ANN success": ann_success(report, c),
-        })  # fmt: skip
+        rows.append(
+            {
+                "SNN on": graded(report, c["snn_profile"]),
+                "ANN on": graded(report, c["ann_profile"]),
+                "SNN nJ (90 %)": _nj_band(c["snn_pj"], u["snn_pj"]),
+                "ANN nJ (90 %)": _nj_band(c["ann_pj"], u["ann_pj"]),
+                "SNN/ANN median (90 %), dynamic": "-"
+                if r["median"] is None
+                else f"{times(r['median'])} ({times(r['p05'])}-{times(r['p95'])})",
+                "P(SNN cheaper)": f"{_p(c):.2f}",
+                "SNN/ANN with static": times(c["static"]["ratio"]),
+                "SNN success": snn_ok,
+                "ANN success": ann_success(report, c),
+            }
+        )
     return rows
 
 
@@ -180,14 +193,19 @@ def merged_note(report: Mapping[str, object]) -> str:
     if primary(report) != "run":
         return ""
     run = {(c["snn_profile"], c["ann_profile"]): c for c in pairs(report)}
-    same = [c for c in lif_report(report)["comparisons"] if c["ann"] == "same_width"
-            and (c["snn_profile"], c["ann_profile"]) in run]  # fmt: skip
+    same = [
+        c
+        for c in lif_report(report)["comparisons"]
+        if c["ann"] == "same_width" and (c["snn_profile"], c["ann_profile"]) in run
+    ]
     equal = [c for c in same if c["ann_pj"] == run[(c["snn_profile"], c["ann_profile"])]["ann_pj"]]
     if not equal:
         return ""
     if len(equal) == len(same):
-        return (f"The same-width ANN has the ANN run's widths: its {len(equal)} rows equal the "
-                "run's and are merged into them (report.json keeps both).")  # fmt: skip
+        return (
+            f"The same-width ANN has the ANN run's widths: its {len(equal)} rows equal the "
+            "run's and are merged into them (report.json keeps both)."
+        )
     return f"{len(equal)} same-width ANN rows equal the ANN run's and are merged into them."
 
 
@@ -197,9 +215,14 @@ def distinct(report: Mapping[str, object]) -> list[ComparisonRow]:
     if not merged_note(report):
         return list(comparisons)
     run = {(c["snn_profile"], c["ann_profile"]): c["ann_pj"] for c in pairs(report)}
-    return [c for c in comparisons if not (
-        c["ann"] == "same_width" and run.get((c["snn_profile"], c["ann_profile"])) == c["ann_pj"]
-    )]  # fmt: skip
+    return [
+        c
+        for c in comparisons
+        if not (
+            c["ann"] == "same_width"
+            and run.get((c["snn_profile"], c["ann_profile"])) == c["ann_pj"]
+        )
+    ]
 
 
 def sd_sentence(report: Mapping[str, object]) -> str:

@@ -23,7 +23,7 @@ from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.goal import BOUNDS, PRIMARY, PROXIES, Priced, decide, priced_policy
 from snnkart.energy.pricing import total
 from snnkart.energy.profiles import Profile, load_profile
-from snnkart.energy.sd_counts import SigmaDeltaCounts
+from snnkart.energy.sigma_delta_counts import SigmaDeltaCounts
 from snnkart.report.study_record import RunRecord, StudyRecord
 
 KEEP = 0.95
@@ -126,8 +126,9 @@ def _energy_nj(
     return total(p.snn) / 1e3
 
 
-def _median_run(runs: list[RunRecord], ann: AnnCounts,
-                profiles: dict[str, Profile]) -> tuple[RunRecord, list[float]]:  # fmt: skip
+def _median_run(
+    runs: list[RunRecord], ann: AnnCounts, profiles: dict[str, Profile]
+) -> tuple[RunRecord, list[float]]:
     """The seed whose central energy is the median (of an even count, the lower middle), and
     every seed's energy."""
     energies = [_energy_nj(c, ann, profiles) for c in (_counts(r) for r in runs) if c]
@@ -204,8 +205,14 @@ def frontier(record: StudyRecord) -> Frontier:
             "ann_nj": {b: total(_base_terms(ann, profiles[b])) / 1e3 for b, _ in BOUNDS},
             "verdict": env_verdict(env, mine, ann_success),
         }
-    return {"chip": PRIMARY, "proxies": list(PROXIES), "keep": KEEP,
-            "baselines": [b for b, _ in BOUNDS], "envs": envs, "points": points}  # fmt: skip
+    return {
+        "chip": PRIMARY,
+        "proxies": list(PROXIES),
+        "keep": KEEP,
+        "baselines": [b for b, _ in BOUNDS],
+        "envs": envs,
+        "points": points,
+    }
 
 
 def _base_terms(ann: AnnCounts, profile: Profile) -> list[Any]:
@@ -225,17 +232,23 @@ def env_verdict(env: str, points: list[FrontierPoint], ann_success: float | None
     reach = sorted((p for p in points if p["goal"]), key=lambda p: p["energy_nj"])
     if reach:
         b = reach[0]
-        return (f"{env}: the goal is reached by {point_name(b)} ({b['success']:.0%} success, "
-                f"{b['energy_nj']:.3g} nJ per inference; its 90 % interval tops out at "
-                f"{b['ratio_fp32']['p95']:.2g}x the fp32 ANN and {b['ratio_int8']['p95']:.2g}x "
-                "the int8 ANN).")  # fmt: skip
+        return (
+            f"{env}: the goal is reached by {point_name(b)} ({b['success']:.0%} success, "
+            f"{b['energy_nj']:.3g} nJ per inference; its 90 % interval tops out at "
+            f"{b['ratio_fp32']['p95']:.2g}x the fp32 ANN and {b['ratio_int8']['p95']:.2g}x "
+            "the int8 ANN)."
+        )
     keep = [p for p in points if p["keeps_accuracy"]] or points
     b = min(keep, key=lambda p: p["ratio_int8"]["p95"] or float("inf"))
     way = b["in_the_way"]["text"] if b["in_the_way"] else "none named"
-    accuracy = ("keeps the accuracy" if b["keeps_accuracy"] else
-                f"does not keep the accuracy ({b['success']:.0%} against the ANN's "
-                f"{ann_success:.0%})")  # fmt: skip
-    return (f"{env}: no point reaches the goal; the closest, {point_name(b)}, {accuracy} and "
-            f"costs {b['energy_nj']:.3g} nJ per inference at central prices, its 90 % interval "
-            f"up to {b['ratio_fp32']['p95']:.2g}x the fp32 ANN (goal 0.5) and "
-            f"{b['ratio_int8']['p95']:.2g}x the int8 ANN (goal 1); in the way: {way}.")  # fmt: skip
+    accuracy = (
+        "keeps the accuracy"
+        if b["keeps_accuracy"]
+        else f"does not keep the accuracy ({b['success']:.0%} against the ANN's {ann_success:.0%})"
+    )
+    return (
+        f"{env}: no point reaches the goal; the closest, {point_name(b)}, {accuracy} and "
+        f"costs {b['energy_nj']:.3g} nJ per inference at central prices, its 90 % interval "
+        f"up to {b['ratio_fp32']['p95']:.2g}x the fp32 ANN (goal 0.5) and "
+        f"{b['ratio_int8']['p95']:.2g}x the int8 ANN (goal 1); in the way: {way}."
+    )

@@ -38,8 +38,7 @@ def held_out_lines(record: StudyRecord) -> list[str]:
         return []
     study = record.study
     groups = list(dict.fromkeys(h.group for h in runs[0].held_out or []))
-    labels = [group_label(g, [h for h in runs[0].held_out or [] if h.group == g])
-              for g in groups]  # fmt: skip
+    labels = [group_label(g, [h for h in runs[0].held_out or [] if h.group == g]) for g in groups]
     lines = [
         "## Held-out tracks",
         "",

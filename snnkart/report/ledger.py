@@ -19,14 +19,27 @@ def price_rows(report: Mapping[str, object]) -> list[dict[str, str]]:
     rows = []
     for name, p in lif_report(report)["profiles"].items():
         for op, price in p["prices"].items():
-            rows.append({
-                "profile": name, "op": op, "value": _value(op, price["pj"]),
-                "low-high": f"{_value(op, price['low_pj'])} - {_value(op, price['high_pj'])}",
-                "tag": price["tag"], "source": price["source"],
-            })  # fmt: skip
+            rows.append(
+                {
+                    "profile": name,
+                    "op": op,
+                    "value": _value(op, price["pj"]),
+                    "low-high": f"{_value(op, price['low_pj'])} - {_value(op, price['high_pj'])}",
+                    "tag": price["tag"],
+                    "source": price["source"],
+                }
+            )
         for op, why in p["not_published"].items():
-            rows.append({"profile": name, "op": op, "value": "not published", "low-high": "-",
-                         "tag": "-", "source": why})  # fmt: skip
+            rows.append(
+                {
+                    "profile": name,
+                    "op": op,
+                    "value": "not published",
+                    "low-high": "-",
+                    "tag": "-",
+                    "source": why,
+                }
+            )
     return rows
 
 
@@ -34,20 +47,34 @@ def ledger(report: Mapping[str, object]) -> list[tuple[str, list[dict[str, str]]
     """For each pair of the verdict, every term of both sides: count x price (with its evidence
     tag) = energy."""
     out = []
-    tag = {(name, op): price["tag"] for name, p in lif_report(report)["profiles"].items()
-           for op, price in p["prices"].items()}  # fmt: skip
+    tag = {
+        (name, op): price["tag"]
+        for name, p in lif_report(report)["profiles"].items()
+        for op, price in p["prices"].items()
+    }
     for c in pairs(report):
         rows = []
-        for side, terms in (("SNN", c["snn_terms"]), ("ANN", c["ann_terms"]),
-                            ("SNN static", c["static"]["snn_static_terms"]),
-                            ("ANN static", c["static"]["ann_static_terms"])):  # fmt: skip
-            rows += [{
-                "side": side, "part": t["part"], "what": t["what"], "count": f"{t['count']:.4g}",
-                "price": f"{t['profile']}.{t['op']} = {_value(t['op'], t['price_pj'])}",
-                "tag": tag[(t["profile"], t["op"])],
-                "energy pJ": f"{t['energy_pj']:.4g}",
-            } for t in terms]  # fmt: skip
-        title = (f"{c['snn_profile']} (host on {c['host_profile']}) vs ANN on "
-                 f"{c['ann_profile']}: {c['snn_pj']:.4g} pJ against {c['ann_pj']:.4g} pJ")  # fmt: skip
+        for side, terms in (
+            ("SNN", c["snn_terms"]),
+            ("ANN", c["ann_terms"]),
+            ("SNN static", c["static"]["snn_static_terms"]),
+            ("ANN static", c["static"]["ann_static_terms"]),
+        ):
+            rows += [
+                {
+                    "side": side,
+                    "part": t["part"],
+                    "what": t["what"],
+                    "count": f"{t['count']:.4g}",
+                    "price": f"{t['profile']}.{t['op']} = {_value(t['op'], t['price_pj'])}",
+                    "tag": tag[(t["profile"], t["op"])],
+                    "energy pJ": f"{t['energy_pj']:.4g}",
+                }
+                for t in terms
+            ]
+        title = (
+            f"{c['snn_profile']} (host on {c['host_profile']}) vs ANN on "
+            f"{c['ann_profile']}: {c['snn_pj']:.4g} pJ against {c['ann_pj']:.4g} pJ"
+        )
         out.append((title, rows))
     return out

@@ -57,8 +57,9 @@ def firing_rates(rates: Sequence[float], sizes: Sequence[int]) -> bytes:
     return _png(fig)
 
 
-def breakdown(energies: dict[str, dict[str, float]],
-              colours: dict[str, str] = PART_COLOURS) -> bytes:  # fmt: skip
+def breakdown(
+    energies: dict[str, dict[str, float]], colours: dict[str, str] = PART_COLOURS
+) -> bytes:
     """Left: energy per inference per (network, profile), log scale (an ``SNN ...`` label in
     red); right: its parts (%), one colour per part of ``colours``."""
     fig, axes = _figure(10.0, 0.45 * len(energies) + 1.6, ncols=2)
@@ -66,8 +67,11 @@ def breakdown(energies: dict[str, dict[str, float]],
     labels = list(energies)
     y = np.arange(len(labels))
     totals = [sum(parts.values()) for parts in energies.values()]
-    left.barh(y, [t / 1000 for t in totals], color=["#d62728" if lab.startswith("SNN") else
-                                                  "#7f7f7f" for lab in labels])  # fmt: skip
+    left.barh(
+        y,
+        [t / 1000 for t in totals],
+        color=["#d62728" if lab.startswith("SNN") else "#7f7f7f" for lab in labels],
+    )
     left.set_xscale("log")
     left.set_xlim(right=12 * max(totals, default=1.0) / 1000)  # room for the value labels
     left.set_yticks(y, labels)
@@ -77,8 +81,12 @@ def breakdown(energies: dict[str, dict[str, float]],
         left.text(t / 1000, yi, f" {t / 1000:.3g}", va="center", fontsize=8)
     start = np.zeros(len(labels))
     for part, colour in colours.items():
-        share = np.array([100 * p.get(part, 0.0) / max(t, 1e-30)
-                          for p, t in zip(energies.values(), totals, strict=True)])  # fmt: skip
+        share = np.array(
+            [
+                100 * p.get(part, 0.0) / max(t, 1e-30)
+                for p, t in zip(energies.values(), totals, strict=True)
+            ]
+        )
         right.barh(y, share, left=start, color=colour, label=part)
         start += share
     right.set_yticks(y, [""] * len(labels))
@@ -102,8 +110,12 @@ def _moves(row: SensitivityRow) -> bool:
     return max(values) > min(values) * (1 + 1e-9)
 
 
-def sensitivity(rows: Sequence[SensitivityRow], curve: Sequence[tuple[float, float]],
-                break_even: float | None, title: str) -> bytes:  # fmt: skip
+def sensitivity(
+    rows: Sequence[SensitivityRow],
+    curve: Sequence[tuple[float, float]],
+    break_even: float | None,
+    title: str,
+) -> bytes:
     """Left: the SNN/ANN ratio as each price moves 0.1x-10x (light) and across its range (dark),
     the prices that do not move it named below; right: the ratio against the spike density,
     with the break-even point. ``title`` goes above both."""
@@ -114,21 +126,35 @@ def sensitivity(rows: Sequence[SensitivityRow], curve: Sequence[tuple[float, flo
     y = np.arange(len(shown))
     base = rows[0]["ratio"] if rows else 1.0
     for yi, row in zip(y, shown, strict=True):
-        for (a, b), colour in (((row["ratio_x0.1"], row["ratio_x10"]), "#aec7e8"),
-                               ((row["ratio_low"], row["ratio_high"]), "#1f77b4")):  # fmt: skip
-            left.plot(sorted((a, b)), [yi, yi], color=colour, linewidth=6, marker="|",
-                      markersize=12, solid_capstyle="butt")  # fmt: skip
+        for (a, b), colour in (
+            ((row["ratio_x0.1"], row["ratio_x10"]), "#aec7e8"),
+            ((row["ratio_low"], row["ratio_high"]), "#1f77b4"),
+        ):
+            left.plot(
+                sorted((a, b)),
+                [yi, yi],
+                color=colour,
+                linewidth=6,
+                marker="|",
+                markersize=12,
+                solid_capstyle="butt",
+            )
     left.axvline(base, color="black", linewidth=1)
     left.axvline(1.0, color="#d62728", linestyle="--", linewidth=1)
     left.set_xscale("log")
-    roles = {"chip": "SNN chip", "host": "SNN host", "digital": "ANN",
-             "host+digital": "ANN + SNN host"}  # fmt: skip
-    left.set_yticks(y, [f"{roles[r['side']]}: {r['profile']}.{r['op']}" for r in shown],
-                    fontsize=8)  # fmt: skip
+    roles = {
+        "chip": "SNN chip",
+        "host": "SNN host",
+        "digital": "ANN",
+        "host+digital": "ANN + SNN host",
+    }
+    left.set_yticks(y, [f"{roles[r['side']]}: {r['profile']}.{r['op']}" for r in shown], fontsize=8)
     left.set_ylim(len(shown) - 0.5, -0.5)
     note = "\n(no effect: " + ", ".join(still) + ")" if still else ""
-    left.set_xlabel("SNN / ANN energy (log; < 1: SNN wins)\nlight: price 0.1x-10x, dark: its "
-                    "range" + note, fontsize=8)  # fmt: skip
+    left.set_xlabel(
+        "SNN / ANN energy (log; < 1: SNN wins)\nlight: price 0.1x-10x, dark: its range" + note,
+        fontsize=8,
+    )
     _density_curve(right, curve, break_even)
     fig.suptitle(title, fontsize=10)
     return _png(fig)
@@ -143,12 +169,19 @@ def _density_curve(ax: Any, curve: Sequence[tuple[float, float]], break_even: fl
     if break_even is not None and break_even <= max(d):
         ax.axvline(break_even, color="#2ca02c", linewidth=1)
         shown = f"{break_even:.2f}" if break_even >= 0.1 else f"{break_even:.2g}"  # not 0.00
-        ax.text(break_even, max(ratio), f" break-even {shown}x", color="#2ca02c",
-                va="top", fontsize=8)  # fmt: skip
+        ax.text(
+            break_even, max(ratio), f" break-even {shown}x", color="#2ca02c", va="top", fontsize=8
+        )
     elif break_even is None:
-        ax.text(0.02, 0.98, f"no break-even: with no spikes at all\nthe SNN still costs "
-                f"{ratio[0]:.2g}x the ANN",
-                transform=ax.transAxes, va="top", fontsize=8, color="#d62728")  # fmt: skip
+        ax.text(
+            0.02,
+            0.98,
+            f"no break-even: with no spikes at all\nthe SNN still costs {ratio[0]:.2g}x the ANN",
+            transform=ax.transAxes,
+            va="top",
+            fontsize=8,
+            color="#d62728",
+        )
     ax.set_ylim(bottom=0)
     ax.set_xlabel("spikes relative to the deployed policy's")
     ax.set_ylabel("SNN / ANN energy")
@@ -165,8 +198,9 @@ MARKERS = {
 """One marker per policy kind of a sweep's runs (:meth:`snnkart.report.study_record.StudySettings.run_label`)."""
 
 
-def tradeoff(points: Sequence[SweepPoint], ann_pj: dict[str, float], profile: str,
-             title: str) -> bytes:  # fmt: skip
+def tradeoff(
+    points: Sequence[SweepPoint], ann_pj: dict[str, float], profile: str, title: str
+) -> bytes:
     """Left: success rate against energy per inference (one dot per run of the sweep, its
     marker its policy kind, the ANN's energy as vertical lines); right: energy per inference
     against T (the ANN's as horizontal lines). ``title`` says whose runs these are."""
@@ -183,11 +217,21 @@ def tradeoff(points: Sequence[SweepPoint], ann_pj: dict[str, float], profile: st
             mine = [r for r in runs if r.get("kind", "dense LIF") == kind]
             label = name if kind == "dense LIF" else f"{name} ({kind})"
             marker = MARKERS.get(kind, "o")
-            left.scatter([r["energy_pj"] / 1000 for r in mine],
-                         [100 * r["success_rate"] for r in mine], color=colour, label=label,
-                         s=22, marker=marker)  # fmt: skip
-            right.scatter([r["num_steps"] for r in mine], [r["energy_pj"] / 1000 for r in mine],
-                          color=colour, s=22, marker=marker)  # fmt: skip
+            left.scatter(
+                [r["energy_pj"] / 1000 for r in mine],
+                [100 * r["success_rate"] for r in mine],
+                color=colour,
+                label=label,
+                s=22,
+                marker=marker,
+            )
+            right.scatter(
+                [r["num_steps"] for r in mine],
+                [r["energy_pj"] / 1000 for r in mine],
+                color=colour,
+                s=22,
+                marker=marker,
+            )
     for (label, pj), style in zip(ann_pj.items(), ("--", ":", "-."), strict=False):
         left.axvline(pj / 1000, color="black", linestyle=style, linewidth=1, label=f"ANN {label}")
         right.axhline(pj / 1000, color="black", linestyle=style, linewidth=1)
@@ -202,8 +246,13 @@ def tradeoff(points: Sequence[SweepPoint], ann_pj: dict[str, float], profile: st
     return _png(fig)
 
 
-def raster(raster: np.ndarray, membranes: np.ndarray, sizes: Sequence[int],
-           thresholds: Sequence[float], title: str) -> bytes:  # fmt: skip
+def raster(
+    raster: np.ndarray,
+    membranes: np.ndarray,
+    sizes: Sequence[int],
+    thresholds: Sequence[float],
+    title: str,
+) -> bytes:
     """Per layer: the spike raster (neuron against SNN step) and the membrane traces of a few
     neurons with the threshold."""
     n = len(sizes)
@@ -241,8 +290,9 @@ def _telling_neurons(spikes: np.ndarray, k: int = 4) -> list[int]:
     on all (nearest the middle first), then the busiest."""
     counts = spikes.sum(0)
     T = spikes.shape[0]
-    partial = [int(j) for j in np.argsort(np.abs(counts - T / 2), kind="stable")
-               if 0 < counts[j] < T]  # fmt: skip
+    partial = [
+        int(j) for j in np.argsort(np.abs(counts - T / 2), kind="stable") if 0 < counts[j] < T
+    ]
     busiest = [int(j) for j in np.argsort(-counts, kind="stable") if int(j) not in partial]
     return (partial + busiest)[:k]
 
@@ -266,22 +316,34 @@ def verdict(rows: Sequence[ChartRow], legend: tuple[str, str]) -> bytes:
     fig, axes = _figure(10.5, 0.36 * len(rows) + 1.1)
     ax = axes[0][0]
     for k, row in enumerate(rows):
-        for dy, nj, colour, name in ((-0.13, row["snn_nj"], "#d62728", legend[0]),
-                                     (0.13, row["ann_nj"], "#555555", legend[1])):  # fmt: skip
+        for dy, nj, colour, name in (
+            (-0.13, row["snn_nj"], "#d62728", legend[0]),
+            (0.13, row["ann_nj"], "#555555", legend[1]),
+        ):
             point, low, high = nj
             ax.plot([low, high], [k + dy] * 2, color=colour, linewidth=2.5, alpha=0.55)
-            ax.plot([point], [k + dy], "o", color=colour, markersize=4.5,
-                    label=name if k == 0 else None)  # fmt: skip
-        ax.text(1.01, k, f"P(SNN cheaper) {row['p']:.2f}\nANN success {row['ann_success']}",
-                transform=ax.get_yaxis_transform(), va="center", fontsize=7,
-                color="#2ca02c" if row["p"] > 0.5 else "#222222")  # fmt: skip
+            ax.plot(
+                [point], [k + dy], "o", color=colour, markersize=4.5, label=name if k == 0 else None
+            )
+        ax.text(
+            1.01,
+            k,
+            f"P(SNN cheaper) {row['p']:.2f}\nANN success {row['ann_success']}",
+            transform=ax.get_yaxis_transform(),
+            va="center",
+            fontsize=7,
+            color="#2ca02c" if row["p"] > 0.5 else "#222222",
+        )
         if k:
             ax.axhline(k - 0.5, color="#dddddd", linewidth=0.8)
     ax.set_xscale("log")
     ax.set_yticks(range(len(rows)), [r["label"] for r in rows], fontsize=7)
     ax.set_ylim(len(rows) - 0.5, -0.5)
-    ax.set_xlabel("energy per inference, dynamic only (nJ, log): dot the estimate, line its 90 % "
-                  "interval (all prices sampled together)", fontsize=8)  # fmt: skip
+    ax.set_xlabel(
+        "energy per inference, dynamic only (nJ, log): dot the estimate, line its 90 % "
+        "interval (all prices sampled together)",
+        fontsize=8,
+    )
     ax.tick_params(axis="x", labelsize=8)
     ax.grid(axis="x", which="major", color="#eeeeee")
     ax.legend(fontsize=7, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2, frameon=False)

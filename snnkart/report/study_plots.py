@@ -16,8 +16,7 @@ import numpy as np
 from snnkart.report.study_record import RunRecord, StudyRecord
 from snnkart.rl import kinds
 
-PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
-           "#17becf")  # fmt: skip
+PALETTE = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf")
 """The study policies' colours, in the kinds registry's order (its kinds, then its
 conversions): ann blue, snn red, sdnn green, rsnn orange, ann-sd purple."""
 
@@ -77,17 +76,19 @@ def _band(ax: Any, runs: list[RunRecord], key: str, colour: str, label: str) -> 
     left would be a median of the slow ones (a cumulative count would seem to fall), so it is
     not drawn (:data:`CAPTION` says so under the figure)."""
     field = "returns" if key == "return" else key  # the curve's JSON key is "return"
-    curves = [(np.asarray(r.curve.steps, dtype=float),
-               np.asarray([np.nan if v is None else v for v in getattr(r.curve, field)],
-                          dtype=float))
-              for r in runs]  # fmt: skip
+    curves = [
+        (
+            np.asarray(r.curve.steps, dtype=float),
+            np.asarray([np.nan if v is None else v for v in getattr(r.curve, field)], dtype=float),
+        )
+        for r in runs
+    ]
     full = min(len(x) for x, _ in curves)
     steps = curves[0][0][:full]
     ys = np.stack([y[:full] for _, y in curves])
     with warnings.catch_warnings():  # iterations in which no seed ended an episode: a gap
         warnings.simplefilter("ignore", RuntimeWarning)
-        median, low, high = (np.nanmedian(ys, axis=0), np.nanmin(ys, axis=0),
-                             np.nanmax(ys, axis=0))  # fmt: skip
+        median, low, high = (np.nanmedian(ys, axis=0), np.nanmin(ys, axis=0), np.nanmax(ys, axis=0))
     ax.plot(steps, median, color=colour, lw=2, label=f"{label} (median of {len(runs)})")
     ax.fill_between(steps, low, high, color=colour, alpha=0.15)
     for r, (x, y) in zip(runs, curves, strict=True):
@@ -108,14 +109,19 @@ def _legend_handles(record: StudyRecord, key: str) -> list[Any]:
     from matplotlib.lines import Line2D
 
     grey = "#555555"
-    handles = [Line2D([], [], color=colour(p), lw=2, label=f"{p.upper()}: median, min–max band")
-               for p in record.study.policies if any(r.policy == p for r in record.runs)]  # fmt: skip
-    handles += [Line2D([], [], color=grey, lw=0.6, label="one seed"),
-                Line2D([], [], color=grey, ls="", marker="o", ms=3.5,
-                       label="stopped early: learned")]  # fmt: skip
+    handles = [
+        Line2D([], [], color=colour(p), lw=2, label=f"{p.upper()}: median, min–max band")
+        for p in record.study.policies
+        if any(r.policy == p for r in record.runs)
+    ]
+    handles += [
+        Line2D([], [], color=grey, lw=0.6, label="one seed"),
+        Line2D([], [], color=grey, ls="", marker="o", ms=3.5, label="stopped early: learned"),
+    ]
     if key == "finishes":
-        handles.append(Line2D([], [], color="grey", lw=0.8, ls=":",
-                              label=f"{record.study.finishes} finishes"))  # fmt: skip
+        handles.append(
+            Line2D([], [], color="grey", lw=0.8, ls=":", label=f"{record.study.finishes} finishes")
+        )
     return handles
 
 
@@ -162,24 +168,42 @@ def figure(record: StudyRecord, track: str, key: str) -> Any:
     top = head + line * -(-len(handles) // per_row) + 0.3  # title, legend, a panel's title
     bottom = 0.15 + 0.16 * (caption.count("\n") + 1) + 0.6  # caption, axis label, ticks
     height = PANEL_IN[1] * nrows + 0.45 * (nrows - 1) + top + bottom
-    fig, axes = plt.subplots(nrows, ncols, figsize=(width, height), dpi=110, sharex=True,
-                             sharey=True, squeeze=False)  # fmt: skip
-    fig.subplots_adjust(left=0.75 / width, right=1 - 0.15 / width, top=1 - top / height,
-                        bottom=bottom / height, wspace=0.25 / PANEL_IN[0],
-                        hspace=0.45 / PANEL_IN[1])  # fmt: skip
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(width, height), dpi=110, sharex=True, sharey=True, squeeze=False
+    )
+    fig.subplots_adjust(
+        left=0.75 / width,
+        right=1 - 0.15 / width,
+        top=1 - top / height,
+        bottom=bottom / height,
+        wspace=0.25 / PANEL_IN[0],
+        hspace=0.45 / PANEL_IN[1],
+    )
     for ax, (env, variant) in zip(axes.flat, cells, strict=False):
         _panel(ax, record, (track, env, variant), key)
     for k in range(len(cells), nrows * ncols):  # an empty slot: the panel above shows the steps
         axes.flat[k].remove()
         axes.flat[k - ncols].tick_params(labelbottom=True)
     fig.text(0.5, 1 - 0.1 / height, title, ha="center", va="top", fontsize=10)
-    fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 1 - head / height),
-               ncol=per_row, fontsize=8, frameon=False, borderaxespad=0)  # fmt: skip
+    fig.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 1 - head / height),
+        ncol=per_row,
+        fontsize=8,
+        frameon=False,
+        borderaxespad=0,
+    )
     fig.text(0.5 / width, 0.15 / height, caption, va="bottom", fontsize=8)
-    fig.text(0.5, (bottom - 0.3) / height, "training env steps", ha="center", va="top",
-             fontsize=9)  # fmt: skip
-    fig.text(0.12 / width, (bottom + (height - top - bottom) / 2) / height, KEYS[key],
-             rotation=90, va="center", fontsize=9)  # fmt: skip
+    fig.text(0.5, (bottom - 0.3) / height, "training env steps", ha="center", va="top", fontsize=9)
+    fig.text(
+        0.12 / width,
+        (bottom + (height - top - bottom) / 2) / height,
+        KEYS[key],
+        rotation=90,
+        va="center",
+        fontsize=9,
+    )
     return fig
 
 

@@ -24,19 +24,29 @@ SCHEMA_FILE = Path(__file__).with_name("study.schema.json")
 
 
 def study_run_sets(
-    sets: list[str], cells: dict[str, list[str]], variants: dict[str, list[str]],
+    sets: list[str],
+    cells: dict[str, list[str]],
+    variants: dict[str, list[str]],
     run: tuple[str, str, str, str],
-) -> list[str]:  # fmt: skip
+) -> list[str]:
     """The settings a study gives the run ``(track, env, policy, variant)``, after its kind's:
     the study's ``sets``, the cell's (``env-policy``, then ``track/env-policy``), the variant's
     (a ``POLICY:NAME`` variant only for that policy). Planning a study and reading its record
     both ask this, so a figure's kind is the settings a run trained with."""
     track, env, policy, variant = run
     cell = f"{env}-{policy}"
-    variant_sets = [s for name, vs in variants.items() if name.rpartition(":")[2] == variant
-                    and name.rpartition(":")[0] in ("", policy) for s in vs]  # fmt: skip
-    return [*sets, *cells.get(cell, []), *cells.get(f"{short_name(track)}/{cell}", []),
-            *variant_sets]  # fmt: skip
+    variant_sets = [
+        s
+        for name, vs in variants.items()
+        if name.rpartition(":")[2] == variant and name.rpartition(":")[0] in ("", policy)
+        for s in vs
+    ]
+    return [
+        *sets,
+        *cells.get(cell, []),
+        *cells.get(f"{short_name(track)}/{cell}", []),
+        *variant_sets,
+    ]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -140,7 +150,7 @@ class RunRecord:
     eval_counts_per_step: StepCounts | None = None
     sigma_delta_counts: dict[str, Any] | None = field(default=None, metadata=OMIT_NONE)
     """A sigma-delta run's evaluation counts per env step: ``dataclasses.asdict`` of
-    :meth:`snnkart.energy.sd_counts.SigmaDeltaCounts.of_deploy` (what ``snnkart report --sweep``
+    :meth:`snnkart.energy.sigma_delta_counts.SigmaDeltaCounts.of_deploy` (what ``snnkart report --sweep``
     prices with ``sd_terms``)."""
     held_out: list[HeldOut] | None = field(default=None, metadata=OMIT_NONE)
     """The run on each held-out track, in ``eval_tracks`` order (None: the study has none)."""

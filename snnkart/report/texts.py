@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 INCLUDES = (
     "Chip: synaptic operations (spikes x fan-out between spiking layers), neuron updates (every "
     "neuron at every SNN step, as Loihi clocks them), spikes; the Lava pipeline's fill and drain "
@@ -53,17 +56,40 @@ REFERENCES = (
 )
 
 
-def not_driving(policy: str, success: str) -> dict[str, str]:
+def not_driving(policy: str, success: str, report: Mapping[str, Any]) -> dict[str, str]:
     """The first screen's warning when ``policy`` (a phrase: "the spiking policy") fails its
-    task: success ``success`` (a percentage) below 80 %."""
-    return {"kind": "warn", "text": (
-        f"WARNING: {policy} does not drive: success {success} (< 80 %). The energy numbers "
-        "below describe a policy that fails its task; they are not a result.")}  # fmt: skip
+    task: success ``success`` (a percentage) below 80 %; or, where the env has no pass mark
+    (``drives`` None), the note that nothing judged the task."""
+    control = report.get("control") or {}
+    mark = control.get("pass_mark", "finished laps")
+    if report["drives"] is None:
+        return {
+            "kind": "warn",
+            "text": (
+                f"NOTE: nothing judges whether {policy} does its task (pass mark: {mark}); "
+                "read the energy numbers beside its mean return."
+            ),
+        }
+    kart = mark == "finished laps"
+    what = "does not drive" if kart else "does not do its task"
+    bound = "< 80 %" if kart else f"< 80 %; {mark}"
+    return {
+        "kind": "warn",
+        "text": (
+            f"WARNING: {policy} {what}: success {success} ({bound}). The energy numbers "
+            "below describe a policy that fails its task; they are not a result."
+        ),
+    }
 
 
-def deployment_opening(d: dict[str, object]) -> str:
-    """The deployment paragraph's first sentence, from a report's ``deploy`` section."""
+def deployment(report: Mapping[str, Any], network: str, schedule: str) -> str:
+    """The deployment paragraph's first sentences, from a report's ``deploy`` and ``network``
+    sections: the file, backend and run; ``network`` (what the family calls its network), its
+    shape and ``schedule`` (how its steps run); the host profile."""
+    d, net = report["deploy"], report["network"]
     return (
         f"Deployment: {d['file']} ({d['backend']}, {d['precision']}), {d['env']}/{d['track']}, "
-        f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences)."
+        f"{d['episodes']} episodes, {d['env_steps']} env steps (inferences). {network} "
+        f"{net['n_in']} -> {net['sizes']} -> {net['n_out']}, {schedule}. Host work priced on "
+        f"{report['host_profile']}."
     )

@@ -36,8 +36,15 @@ def track_png(track: Track, field: GeodesicField, checkpoint: int, env_name: str
         colour = "#d62728" if finish else ("#ff7f0e" if i == checkpoint else "#2ca02c")
         ax.plot([cp.a[0], cp.b[0]], [cp.a[1], cp.b[1]], color=colour, linewidth=2.5)
         mx, my = cp.midpoint
-        ax.annotate("finish" if finish else str(i), (mx, my), color=colour, fontsize=9,
-                    xytext=(4, 4), textcoords="offset points", weight="bold")  # fmt: skip
+        ax.annotate(
+            "finish" if finish else str(i),
+            (mx, my),
+            color=colour,
+            fontsize=9,
+            xytext=(4, 4),
+            textcoords="offset points",
+            weight="bold",
+        )
     _spawn(ax, track)
     xmin, ymin, xmax, ymax = track.bounds
     pad = 0.3 * PIXELS_PER_METRE
@@ -64,18 +71,30 @@ def _route_field(ax: Any, field: GeodesicField, k: int) -> None:
     gx, gy = field.grad[k, 0][r, c], field.grad[k, 1][r, c]
     norm = np.hypot(gx, gy)
     ok = np.isfinite(norm) & (norm > 0.1)
-    ax.quiver(x0 + c[ok] * field.cell, y0 + r[ok] * field.cell, -gx[ok] / norm[ok],
-              gy[ok] / norm[ok], color="white", scale=40, width=0.003)  # fmt: skip
+    ax.quiver(
+        x0 + c[ok] * field.cell,
+        y0 + r[ok] * field.cell,
+        -gx[ok] / norm[ok],
+        gy[ok] / norm[ok],
+        color="white",
+        scale=40,
+        width=0.003,
+    )
 
 
 def _spawn(ax: Any, track: Track) -> None:
     x, y = track.spawn_position
     j = track.spawn_jitter
-    ax.plot([x - j, x + j, x + j, x - j, x - j], [y - j, y - j, y + j, y + j, y - j],
-            color="#1f77b4", linewidth=1)  # fmt: skip
+    ax.plot(
+        [x - j, x + j, x + j, x - j, x - j],
+        [y - j, y - j, y + j, y + j, y - j],
+        color="#1f77b4",
+        linewidth=1,
+    )
     length = 0.5 * PIXELS_PER_METRE
     dx, dy = length * np.cos(track.spawn_heading), length * np.sin(track.spawn_heading)
-    ax.annotate("", (x + dx, y + dy), (x, y), arrowprops={"arrowstyle": "->", "color": "#1f77b4",
-                                                          "lw": 2})  # fmt: skip
+    ax.annotate(
+        "", (x + dx, y + dy), (x, y), arrowprops={"arrowstyle": "->", "color": "#1f77b4", "lw": 2}
+    )
     ax.plot([x], [y], "o", color="#1f77b4", markersize=7)
     ax.annotate("spawn", (x, y), color="#1f77b4", xytext=(-10, -14), textcoords="offset points")

@@ -93,11 +93,17 @@ def behaviour_clone(
         value_losses.append(float(sums[1] / sums[2]))
         accuracies.append(_accuracy(policy, obs, raw, actions))
     return {
-        "data": str(bc.data), "sha256": _sha256(Path(bc.data)), "steps": len(obs),
-        "episodes": rec.episodes, "driver": rec.meta.get("driver"), "epochs": bc.epochs,
-        "value": bc.value, "actor_loss": actor_losses, "value_loss": value_losses,
+        "data": str(bc.data),
+        "sha256": _sha256(Path(bc.data)),
+        "steps": len(obs),
+        "episodes": rec.episodes,
+        "driver": rec.meta.get("driver"),
+        "epochs": bc.epochs,
+        "value": bc.value,
+        "actor_loss": actor_losses,
+        "value_loss": value_losses,
         "accuracy": accuracies,
-    }  # fmt: skip
+    }
 
 
 WINDOW, BURN_IN = 64, 16
@@ -119,7 +125,9 @@ def _batches(
         return
     windows = torch.as_tensor(_windows(rec.episode_starts, n, WINDOW))
     if len(windows) == 0:
-        raise ConfigError(f"--pretrain-bc: a stateful actor needs episodes of at least {WINDOW} steps")  # fmt: skip
+        raise ConfigError(
+            f"--pretrain-bc: a stateful actor needs episodes of at least {WINDOW} steps"
+        )
     per_batch = max(1, batch_size // WINDOW)
     for pick in torch.randperm(len(windows), generator=gen).split(per_batch):
         e = len(pick)

@@ -28,10 +28,12 @@ CHECKPOINT_SCHEMA = "snnkart/checkpoint/v1"
 
 
 class Generators(TypedDict, total=False):
-    """How a checkpoint restores the minibatch shuffling (one of the two)."""
+    """How a checkpoint restores the minibatch shuffling (one of the two), and the optional
+    training state: ``reward_rms``, the running return variance of ``ppo.norm_reward``."""
 
     numpy_seed: int  # a history checkpoint: the minibatch shuffling is re-seeded from it
     numpy_state: Mapping[str, object]  # a latest-only one: the generator's own state
+    reward_rms: dict[str, torch.Tensor]
 
 
 class CheckpointState(Generators):
@@ -60,7 +62,7 @@ class _Meta(ProgressState):
     env_spec: dict[str, object]  # snnkart.envs.spec.env_spec
     env_spec_hash: str
     config: dict[str, object]  # the training config, as config.toml has it
-    track: dict[str, str]  # snnkart.envs.tracks.embed_track
+    track: dict[str, str] | None  # snnkart.envs.tracks.embed_track (None: not a kart env)
     stopped_early: bool
 
 

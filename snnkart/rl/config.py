@@ -25,12 +25,13 @@ from pydantic import (
 )
 
 from snnkart.envs import resolve_env_name
+from snnkart.envs.resolve import resolve_env
 from snnkart.envs.spec import make_env
+from snnkart.envs.task_env import make_gym_env
 from snnkart.errors import ConfigError, did_you_mean
 from snnkart.rl import kinds
 from snnkart.rl.bc_config import BCConfig
 from snnkart.rl.config_names import renamed_keys
-from snnkart.rl.sdnn_config import SDNNConfig
 from snnkart.rl.sections import (
     ANNConfig,
     EvalConfig,
@@ -39,6 +40,7 @@ from snnkart.rl.sections import (
     SNNConfig,
     StopConfig,
 )
+from snnkart.rl.sigma_delta_config import SDNNConfig
 
 if TYPE_CHECKING:
     from snnkart.envs.tracks import Track
@@ -65,7 +67,14 @@ class _TrainConfig(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     schema_: str = Field(CONFIG_SCHEMA, alias="schema")
-    env: str = "steer"
+    env: str = Field(
+        "steer",
+        description="a kart env (grid, gazebo, steer), a gymnasium id (CartPole-v1), "
+        "'module:EnvId-v0' or 'package.module:ClassName'",
+    )
+    env_kwargs: dict[str, object] = Field(
+        default_factory=dict, description="keyword arguments of a gymnasium env's make"
+    )
     track: str = "small_S"
     action_mode: Literal["discrete", "continuous"] = "discrete"
     policy: str = Field("snn", description="the policy kind (snnkart.rl.kinds)")
@@ -117,7 +126,20 @@ class _TrainConfig(BaseModel):
 
     @model_validator(mode="after")
     def _check(self) -> _TrainConfig:
-        object.__setattr__(self, "env", resolve_env_name(self.env))
+        ref = resolve_env(self.env)
+        object.__setattr__(self, "env", resolve_env_name(self.env) if ref.kart else ref.name)
+        if not ref.kart:
+            for what, on in (("stop.finishes", self.stop.finishes), ("bc", self.bc)):
+                if on is not None:
+                    raise ValueError(
+                        f"{what} needs a kart env (finished laps, a recorded driver); "
+                        f"{self.env!r} is a gymnasium env: leave {what} unset"
+                    )
+            if self.eval.every_steps:
+                raise ValueError(
+                    f"eval.every_steps needs a kart env for now; {self.env!r} is a gymnasium "
+                    "env: set eval.every_steps = 0 and run snnkart eval on the checkpoints"
+                )
         batch = self.ppo.num_envs * self.ppo.rollout_steps
         if batch < self.ppo.num_minibatches:
             raise ValueError(
@@ -128,6 +150,11 @@ class _TrainConfig(BaseModel):
         return self
 
     @property
+    def kart(self) -> bool:
+        """Whether the env is one of snnkart's kart envs (tracks, laps), not any gymnasium env."""
+        return resolve_env(self.env).kart
+
+    @property
     def batch_size(self) -> int:
         return self.ppo.num_envs * self.ppo.rollout_steps
 
@@ -135,7 +162,10 @@ class _TrainConfig(BaseModel):
         self, render_mode: str | None = None, track: str | Path | Track | None = None
     ) -> gym.Env:
         """The env of this config; ``track`` (e.g. the one embedded in a checkpoint) instead
-        of ``self.track``."""
+        of ``self.track``. A gymnasium env takes ``env_kwargs`` and no track."""
+        ref = resolve_env(self.env)
+        if not ref.kart:
+            return make_gym_env(ref, self.env_kwargs, render_mode)
         return make_env(
             self.env,
             self.track if track is None else track,

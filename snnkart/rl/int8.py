@@ -119,13 +119,17 @@ class Int8Mlp:
         """The scales and integer widths per layer, for the report."""
         return [
             {
-                "layer": i, "shape": list(q.weight.shape), "in_scale": q.in_scale,
-                "weight_scale": q.weight_scale, "pre_scale": q.pre_scale,
-                "multiplier": q.multiplier, "shift": q.shift,
+                "layer": i,
+                "shape": list(q.weight.shape),
+                "in_scale": q.in_scale,
+                "weight_scale": q.weight_scale,
+                "pre_scale": q.pre_scale,
+                "multiplier": q.multiplier,
+                "shift": q.shift,
                 "max_abs_bias": int(np.abs(q.bias).max(initial=0)),
             }
             for i, q in enumerate(self.layers)
-        ]  # fmt: skip
+        ]
 
 
 def symmetric_scale(values: np.ndarray) -> float:
@@ -180,8 +184,7 @@ def quantise_mlp(
             raise ValueError(f"layer {i}: the int32 accumulator could overflow ({bound:.3g})")
         pre = x @ w.T + b
         if i == len(params) - 1:
-            layers.append(Int8Layer(w_q, b_q.astype(np.int32), in_scale, w_scale,
-                                    None, 0, 0, None))  # fmt: skip
+            layers.append(Int8Layer(w_q, b_q.astype(np.int32), in_scale, w_scale, None, 0, 0, None))
             break
         relu = activation == "relu"
         x = np.maximum(pre, 0.0) if relu else np.tanh(pre)
@@ -189,8 +192,11 @@ def quantise_mlp(
         out_scale = pre_scale if relu else symmetric_scale(x)
         m, k = fixed_multiplier(in_scale * w_scale / pre_scale)
         table = None if relu else tanh_table(pre_scale, out_scale)
-        layers.append(Int8Layer(w_q, b_q.astype(np.int32), in_scale, w_scale,
-                                pre_scale, m, k, table, activation))  # fmt: skip
+        layers.append(
+            Int8Layer(
+                w_q, b_q.astype(np.int32), in_scale, w_scale, pre_scale, m, k, table, activation
+            )
+        )
         in_scale = out_scale
     return Int8Mlp(tuple(layers))
 
@@ -222,7 +228,10 @@ def actor_params(actor: Any) -> list[tuple[np.ndarray, np.ndarray]]:
             )
         if isinstance(module, torch.nn.Linear):
             w = module.weight.detach().double().numpy()
-            b = (module.bias.detach().double().numpy() if module.bias is not None
-                 else np.zeros(w.shape[0]))  # fmt: skip
+            b = (
+                module.bias.detach().double().numpy()
+                if module.bias is not None
+                else np.zeros(w.shape[0])
+            )
             params.append((w, b))
     return params

@@ -36,10 +36,17 @@ from numba import njit
 
 @njit(cache=True, nogil=True)
 def _forward(
-    current: np.ndarray, u0: np.ndarray, zero_at: np.ndarray, alpha: np.float32,
-    beta: np.float32, threshold: np.float32, cuba: bool,
-    syn: np.ndarray, mem_pre: np.ndarray, spikes: np.ndarray,
-) -> None:  # fmt: skip
+    current: np.ndarray,
+    u0: np.ndarray,
+    zero_at: np.ndarray,
+    alpha: np.float32,
+    beta: np.float32,
+    threshold: np.float32,
+    cuba: bool,
+    syn: np.ndarray,
+    mem_pre: np.ndarray,
+    spikes: np.ndarray,
+) -> None:
     R, n = current.shape
     u = u0.copy()
     i_syn = np.zeros(n, dtype=np.float32)
@@ -66,10 +73,19 @@ def _forward(
 
 @njit(cache=True, nogil=True)
 def _backward(
-    grad_spikes: np.ndarray, mem_pre: np.ndarray, spikes: np.ndarray, syn: np.ndarray,
-    u0: np.ndarray, zero_at: np.ndarray, alpha: np.float32, beta: np.float32,
-    threshold: np.float32, slope: np.float32, cuba: bool, grad_current: np.ndarray,
-) -> tuple[float, float, float]:  # fmt: skip
+    grad_spikes: np.ndarray,
+    mem_pre: np.ndarray,
+    spikes: np.ndarray,
+    syn: np.ndarray,
+    u0: np.ndarray,
+    zero_at: np.ndarray,
+    alpha: np.float32,
+    beta: np.float32,
+    threshold: np.float32,
+    slope: np.float32,
+    cuba: bool,
+    grad_current: np.ndarray,
+) -> tuple[float, float, float]:
     R, n = mem_pre.shape
     grad_u = np.zeros(n, dtype=np.float32)  # dL/dU_t (post-reset), from row t+1
     grad_i = np.zeros(n, dtype=np.float32)  # dL/dI_t through I_{t+1}, from row t+1
@@ -109,10 +125,16 @@ class FusedLIF(torch.autograd.Function):
 
     @staticmethod
     def forward(  # type: ignore[override]
-        ctx: Any, current: torch.Tensor, u0: torch.Tensor, zero_at: torch.Tensor,
-        alpha: torch.Tensor, beta: torch.Tensor, threshold: torch.Tensor, slope: float,
+        ctx: Any,
+        current: torch.Tensor,
+        u0: torch.Tensor,
+        zero_at: torch.Tensor,
+        alpha: torch.Tensor,
+        beta: torch.Tensor,
+        threshold: torch.Tensor,
+        slope: float,
         cuba: bool,
-    ) -> torch.Tensor:  # fmt: skip
+    ) -> torch.Tensor:
         shape = current.shape
         cur = current.detach().reshape(shape[0], -1).contiguous().numpy()
         start = u0.detach().reshape(-1).contiguous().numpy()
@@ -151,10 +173,17 @@ class FusedLIF(torch.autograd.Function):
 
 @njit(cache=True, nogil=True)
 def _rec_forward(
-    current: np.ndarray, u0: np.ndarray, s0: np.ndarray, zero_at: np.ndarray, weight: np.ndarray,
-    beta: np.float32, threshold: np.float32, mem_pre: np.ndarray, spikes: np.ndarray,
+    current: np.ndarray,
+    u0: np.ndarray,
+    s0: np.ndarray,
+    zero_at: np.ndarray,
+    weight: np.ndarray,
+    beta: np.float32,
+    threshold: np.float32,
+    mem_pre: np.ndarray,
+    spikes: np.ndarray,
     before: np.ndarray,
-) -> None:  # fmt: skip
+) -> None:
     R, E, N = current.shape
     zero = np.float32(0.0)
     for e in range(E):
@@ -183,10 +212,19 @@ def _rec_forward(
 
 @njit(cache=True, nogil=True)
 def _rec_backward(
-    grad_spikes: np.ndarray, mem_pre: np.ndarray, spikes: np.ndarray, before: np.ndarray,
-    u0: np.ndarray, zero_at: np.ndarray, weight: np.ndarray, beta: np.float32,
-    threshold: np.float32, slope: np.float32, grad_current: np.ndarray, grad_weight: np.ndarray,
-) -> tuple[float, float]:  # fmt: skip
+    grad_spikes: np.ndarray,
+    mem_pre: np.ndarray,
+    spikes: np.ndarray,
+    before: np.ndarray,
+    u0: np.ndarray,
+    zero_at: np.ndarray,
+    weight: np.ndarray,
+    beta: np.float32,
+    threshold: np.float32,
+    slope: np.float32,
+    grad_current: np.ndarray,
+    grad_weight: np.ndarray,
+) -> tuple[float, float]:
     R, E, N = mem_pre.shape
     one = np.float32(1.0)
     grad_beta = 0.0
@@ -232,10 +270,16 @@ class FusedRecurrentLIF(torch.autograd.Function):
 
     @staticmethod
     def forward(  # type: ignore[override]
-        ctx: Any, current: torch.Tensor, u0: torch.Tensor, s0: torch.Tensor,
-        zero_at: torch.Tensor, weight: torch.Tensor, beta: torch.Tensor,
-        threshold: torch.Tensor, slope: float,
-    ) -> torch.Tensor:  # fmt: skip
+        ctx: Any,
+        current: torch.Tensor,
+        u0: torch.Tensor,
+        s0: torch.Tensor,
+        zero_at: torch.Tensor,
+        weight: torch.Tensor,
+        beta: torch.Tensor,
+        threshold: torch.Tensor,
+        slope: float,
+    ) -> torch.Tensor:
         cur = current.detach().contiguous().numpy()
         start, first = (t.detach().contiguous().numpy() for t in (u0, s0))
         mask = zero_at.contiguous().numpy()
@@ -253,13 +297,19 @@ class FusedRecurrentLIF(torch.autograd.Function):
         b, thr, slope, beta_shape, thr_shape = ctx.params
         grad = grad_spikes.contiguous().numpy()
         grad_current, grad_weight = np.empty_like(grad), np.zeros_like(w)
-        g_beta, g_thr = _rec_backward(grad, mem_pre, spikes, before, start, mask, w, b, thr,
-                                      slope, grad_current, grad_weight)  # fmt: skip
+        g_beta, g_thr = _rec_backward(
+            grad, mem_pre, spikes, before, start, mask, w, b, thr, slope, grad_current, grad_weight
+        )
         return (
-            torch.from_numpy(grad_current), None, None, None, torch.from_numpy(grad_weight),
+            torch.from_numpy(grad_current),
+            None,
+            None,
+            None,
+            torch.from_numpy(grad_weight),
             torch.tensor(g_beta, dtype=torch.float32).reshape(beta_shape),
-            torch.tensor(g_thr, dtype=torch.float32).reshape(thr_shape), None,
-        )  # fmt: skip
+            torch.tensor(g_thr, dtype=torch.float32).reshape(thr_shape),
+            None,
+        )
 
 
 def lif_rows(
@@ -295,9 +345,12 @@ def fused_lif_layer(
 
 
 def fused_cuba_layer(
-    current: torch.Tensor, alpha: torch.Tensor, beta: torch.Tensor, threshold: torch.Tensor,
+    current: torch.Tensor,
+    alpha: torch.Tensor,
+    beta: torch.Tensor,
+    threshold: torch.Tensor,
     slope: float,
-) -> torch.Tensor:  # fmt: skip
+) -> torch.Tensor:
     """Spikes ``[T, B, N]`` of a current-based LIF layer (snntorch ``Synaptic``, reset to zero,
     no reset delay) driven by ``current`` ``[T, B, N]``, from I = U = 0; ``alpha`` and ``beta``
     are clamped to [0, 1] as snntorch does, with the clamp's gradient. Its current is Lava's

@@ -1,6 +1,7 @@
 """Running observation normalisation: mean and variance kept while training, frozen with the
 checkpoint (stored as plain tensors, see :meth:`RunningMeanStd.state`) and applied the way the
-deployment contract does (:func:`snnkart.contract.encoding.normalise`)."""
+deployment contract does (:func:`snnkart.contract.encoding.normalise`); and the training
+rewards' scaling (:class:`RewardScaling`), which a deployed policy never sees."""
 
 from __future__ import annotations
 
@@ -46,3 +47,30 @@ class RunningMeanStd:
     @classmethod
     def from_state(cls, state: dict[str, torch.Tensor]) -> RunningMeanStd:
         return cls(state["mean"].numpy().copy(), state["var"].numpy().copy(), float(state["count"]))
+
+
+@dataclass
+class RewardScaling:
+    """Stable-Baselines3's ``VecNormalize`` reward normalisation (``norm_reward``): every env
+    keeps its discounted return ``R = gamma R + r`` (0 again after an episode ends), a running
+    variance of those returns is updated each step, and the reward used for learning is
+    ``clip(r / sqrt(var + 1e-8), +-clip)``. Values and advantages are then in these units."""
+
+    gamma: float
+    clip: float
+    rms: RunningMeanStd
+    returns: np.ndarray | None = None
+
+    @classmethod
+    def new(cls, gamma: float, clip: float) -> RewardScaling:
+        return cls(gamma, clip, RunningMeanStd(np.zeros(()), np.ones(())))
+
+    def __call__(self, reward: np.ndarray, done: np.ndarray) -> np.ndarray:
+        """The scaled rewards of one vector step (``reward``, ``done``: one per env)."""
+        if self.returns is None or self.returns.shape != reward.shape:
+            self.returns = np.zeros_like(reward, dtype=np.float64)
+        self.returns = self.returns * self.gamma + reward
+        self.rms.update(self.returns)
+        scaled = np.clip(reward / np.sqrt(self.rms.var + encoding.OBS_EPS), -self.clip, self.clip)
+        self.returns[done] = 0.0
+        return np.asarray(scaled, dtype=np.float64)

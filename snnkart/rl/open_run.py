@@ -9,6 +9,7 @@ the policy and load its weights, and the frozen observation normaliser.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -54,8 +55,9 @@ class OpenedRun:
     config: TrainConfig
     """``config.toml`` with the env config the checkpoint was trained in (a default that
     changed since does not change the env)."""
-    track: Track
-    """The track the checkpoint was trained on (embedded in it, or ``config.track``)."""
+    track: Track | None
+    """The track the checkpoint was trained on (embedded in it, or ``config.track``); None
+    for a gymnasium env."""
     env_spec: dict[str, Any]
     """The spec of the env ``config`` and ``track`` make; the checkpoint fits it."""
     policy: ActorCritic
@@ -77,19 +79,25 @@ def open_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Opene
     cfg = read_run_config(run_dir)
     ckpt = checkpoint_path(run_dir, checkpoint)
     state, meta = load_checkpoint(ckpt)
-    try:
-        track = checkpoint_track(meta, cfg, ckpt)
-    except TrackError as exc:
-        raise CheckpointError(
-            f"{ckpt}: {exc} (this checkpoint predates embedded tracks: put the track file back "
-            "where it was trained, or retrain)"
-        ) from exc
-    cfg = trained_config(meta, cfg, track)  # the env it was trained in, whatever the defaults
+    track: Track | None = None
+    if cfg.kart:
+        try:
+            track = checkpoint_track(meta, cfg, ckpt)
+        except TrackError as exc:
+            raise CheckpointError(
+                f"{ckpt}: {exc} (this checkpoint predates embedded tracks: put the track file "
+                "back where it was trained, or retrain)"
+            ) from exc
+        cfg = trained_config(meta, cfg, track)  # the env it was trained in, whatever the defaults
     env = cfg.make_env(track=track)
     try:
-        check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]
-        spec = env_spec(env.unwrapped)  # type: ignore[arg-type]
-        policy = policy_for(cfg, env.unwrapped)  # type: ignore[arg-type]
+        if track is None:  # any gymnasium env: the policy sees the wrapped env's spaces
+            spec = _checked_gym_spec(cfg, env, meta, ckpt)
+            policy = policy_for(cfg, env)
+        else:
+            check_compatible(meta, env.unwrapped, str(ckpt))  # type: ignore[arg-type]
+            spec = env_spec(env.unwrapped)  # type: ignore[arg-type]
+            policy = policy_for(cfg, env.unwrapped)
     finally:
         env.close()
     try:
@@ -100,9 +108,38 @@ def open_run(run_dir: str | Path, checkpoint: str | Path | None = None) -> Opene
         ) from exc
     progress = Progress(**{k: int(v) for k, v in state.get("progress", {}).items()})
     return OpenedRun(
-        run_dir, ckpt, cfg, track, spec, policy, RunningMeanStd.from_state(state["obs_rms"]),
-        progress, _schedule(cfg, meta, state, progress), state, meta,
-    )  # fmt: skip
+        run_dir,
+        ckpt,
+        cfg,
+        track,
+        spec,
+        policy,
+        RunningMeanStd.from_state(state["obs_rms"]),
+        progress,
+        _schedule(cfg, meta, state, progress),
+        state,
+        meta,
+    )
+
+
+def _checked_gym_spec(
+    cfg: TrainConfig, env: Any, meta: Mapping[str, object], ckpt: Path
+) -> dict[str, object]:
+    """The spec of the gymnasium env ``cfg`` makes now, refused if its spaces differ from the
+    checkpoint's (a different package version is a warning)."""
+    from snnkart.envs.resolve import resolve_env
+    from snnkart.envs.task_env import check_trained_on, gym_spec
+    from snnkart.errors import EnvError
+
+    now = gym_spec(resolve_env(cfg.env), env, cfg.env_kwargs)
+    saved = meta.get("env_spec")
+    if not isinstance(saved, dict):
+        raise CheckpointError(f"{ckpt}: the checkpoint records no env spec; retrain the run")
+    try:
+        check_trained_on(saved, now, "run it on that env, or retrain", where=f"{ckpt}: ")
+    except EnvError as exc:
+        raise CheckpointError(f"{ckpt}: {exc}") from exc
+    return now
 
 
 def _schedule(

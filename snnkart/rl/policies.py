@@ -1,5 +1,5 @@
 """Actor-critic policies for PPO: an MLP (ANN) and a spiking actor (SNN, snntorch); the
-sigma-delta actor (SDNN) is :mod:`snnkart.rl.sdnn`'s, its policy here.
+sigma-delta actor (SDNN) is :mod:`snnkart.rl.sigma_delta`'s, its policy here.
 
 All share one interface, :class:`ActorCritic`, so the PPO loop does not know which it trains.
 The critic is always an MLP: it never leaves the host. The spiking actor is built for
@@ -20,9 +20,9 @@ from snnkart.contract.encoding import population_centres, rate_probabilities, ra
 from snnkart.errors import ExportError
 from snnkart.rl.actor_critic import ActorCritic, BufferNeeds, PolicyOutput, mlp
 from snnkart.rl.lif_nir import NIRGraph, lif_graph
-from snnkart.rl.sdnn import SigmaDeltaActor, changed_share, message_proxy
-from snnkart.rl.sdnn_config import SDNNConfig
 from snnkart.rl.sections import ANNConfig, SNNConfig
+from snnkart.rl.sigma_delta import SigmaDeltaActor, changed_share, message_proxy
+from snnkart.rl.sigma_delta_config import SDNNConfig
 from snnkart.rl.spiking import SpikingActor
 from snnkart.rl.stateful import state_size, stream_sequence, stream_step
 from snnkart.rl.stateful_lif import fused_stream_sequence
@@ -314,6 +314,13 @@ class StatefulSNNPolicy(SNNPolicy):
 
 
 __all__ = [
-    "ANNPolicy", "ActorCritic", "BufferNeeds", "PolicyOutput", "SDNNPolicy", "SNNPolicy",
-    "SpikingActor", "StatefulSNNPolicy", "mlp",
-]  # fmt: skip
+    "ANNPolicy",
+    "ActorCritic",
+    "BufferNeeds",
+    "PolicyOutput",
+    "SDNNPolicy",
+    "SNNPolicy",
+    "SpikingActor",
+    "StatefulSNNPolicy",
+    "mlp",
+]

@@ -24,43 +24,32 @@ import torch
 from torch import nn
 
 from snnkart import faults
+from snnkart.envs.resolve import resolve_env
 from snnkart.envs.spec import env_spec, spec_hash
-from snnkart.envs.tracks import embed_track, load_track
+from snnkart.envs.task_env import gym_spec
+from snnkart.envs.tracks import Track, embed_track, load_track
 from snnkart.errors import RunError
 from snnkart.rl.bc import warm_start
 from snnkart.rl.buffer import Batch, RolloutBuffer, Sequences, compute_gae, minibatches
 from snnkart.rl.checkpoint import CheckpointMeta, CheckpointState, Generators
-from snnkart.rl.config import TrainConfig, read_run_config
+from snnkart.rl.config import TrainConfig
 from snnkart.rl.kinds import policy_for
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
 from snnkart.rl.periodic_eval import PeriodicEval
 from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
-from snnkart.rl.rollout import IterationStats, Progress, Rollout, TrainResult, normalize_obs
-from snnkart.rl.run_dir import RunDir, resolved_env_config
+from snnkart.rl.rollout import (
+    KART_CHARTS,
+    IterationStats,
+    Progress,
+    Rollout,
+    TrainResult,
+    normalize_obs,
+)
+from snnkart.rl.run_dir import RunDir, config_to_train, resolved_env_config
 from snnkart.rl.stopping import check, stopped
 
 __all__ = ["Progress", "RunError", "Trainer", "compute_gae", "normalize_obs", "policy_for"]
-
-
-def _resolve_config(
-    cfg: TrainConfig, run_dir: Path, resume: bool, total_steps: int | None
-) -> TrainConfig:
-    """The config to train with: ``cfg``, or on resume the run's own, with its own length
-    unless ``total_steps`` extends (or shortens) it explicitly."""
-    config_path = run_dir / "config.toml"
-    if resume:
-        if not config_path.is_file():
-            raise RunError(f"nothing to resume in {run_dir}: no config.toml there")
-        saved = read_run_config(run_dir)
-        if total_steps is not None and total_steps != saved.total_steps:
-            saved = saved.model_copy(update={"total_steps": total_steps})
-        return saved
-    if config_path.exists():
-        raise RunError(
-            f"{run_dir} already holds a run; pass --resume to continue it or choose another --out"
-        )
-    return cfg
 
 
 class Trainer:
@@ -76,30 +65,31 @@ class Trainer:
         """``resume``: continue the run in ``run_dir`` with its own config and length (``cfg``
         is not used); ``total_steps`` gives it another length (its schedules stretch to it)."""
         self.run_dir = Path(run_dir)
-        self.cfg = cfg = _resolve_config(cfg, self.run_dir, resume, total_steps)
+        self.cfg = cfg = config_to_train(cfg, self.run_dir, resume, total_steps)
         self.resumed_length: int | None = None
         """On resume, the length the run was training for before this session."""
         self.out = RunDir(self.run_dir, cfg.run.tensorboard)
         # A resumed run trains on the track its checkpoint carries (the file may have moved),
         # in the env it was trained in, whatever the defaults are today; with cfg's length.
         opened = open_run(self.run_dir) if resume and self.out.latest.is_file() else None
+        self.track: Track | None
         if opened is not None:
             self.track = opened.track
             self.resumed_length = opened.schedule.total_steps
             self.cfg = cfg = opened.config.model_copy(update={"total_steps": cfg.total_steps})
         else:
-            self.track = load_track(cfg.track)
+            self.track = load_track(cfg.track) if cfg.kart else None
         torch.set_num_threads(cfg.run.torch_threads)
         p = cfg.ppo
         self.rollout = Rollout(cfg, self.track)
         self.envs, self.karts = self.rollout.envs, self.rollout.karts
-        self.env0 = self.karts[0]
-        self.cfg = cfg = resolved_env_config(cfg, self.env0)  # config.toml: the whole env
+        env0 = self.envs.envs[0]
+        self.cfg, self.spec = _resolved(cfg, self.rollout)
+        cfg = self.cfg
         self.evals = PeriodicEval(cfg, self.out)
-        self.spec = env_spec(self.env0)
-        self.obs_dim = int(self.env0.observation_space.low.shape[0])  # the spec's obs_dim
+        self.obs_dim = int(np.prod(env0.observation_space.shape or (0,)))  # the spec's obs_dim
         torch.manual_seed(cfg.seed)
-        self.policy = policy_for(cfg, self.env0) if opened is None else opened.policy
+        self.policy = policy_for(cfg, env0) if opened is None else opened.policy
         self.optimizer = torch.optim.Adam(
             self.policy.parameters(), lr=p.learning_rate, eps=1e-5, foreach=True
         )
@@ -126,6 +116,7 @@ class Trainer:
         state = run.state
         self.optimizer.load_state_dict(state["optimizer"])
         self.obs_rms = run.obs_rms
+        self.rollout.restore_reward_scaling(state)
         self.progress = run.progress
         torch.set_rng_state(state["torch_rng"])
         if "numpy_state" in state:  # a latest-only checkpoint (:meth:`save` with history off)
@@ -135,8 +126,7 @@ class Trainer:
             self.rng = np.random.default_rng(int(state["numpy_seed"]))
 
     def save(self, history: bool = True) -> Path:
-        """Write ``checkpoint.pt`` (latest) and, with ``history``, a copy under
-        ``checkpoints/``.
+        """Write ``checkpoint.pt`` (latest) and, with ``history``, a copy in ``checkpoints/``.
 
         A history checkpoint re-seeds the minibatch shuffling from a drawn seed (as every
         checkpoint did before latest-only ones existed); a latest-only one stores the
@@ -159,13 +149,14 @@ class Trainer:
             "progress": self.progress.state(),
             "torch_rng": torch.get_rng_state(),
             **rng,
+            **self.rollout.reward_scaling_state(),
         }
         meta: CheckpointMeta = {
             "policy": self.cfg.policy,
             "env_spec": self.spec,
             "env_spec_hash": spec_hash(self.spec),
             "config": self.cfg.model_dump(mode="json", by_alias=True),
-            "track": embed_track(self.track, self.cfg.track),
+            "track": None if self.track is None else embed_track(self.track, self.cfg.track),
             **self.progress.state(),
             "stopped_early": self.stopped_early,
         }
@@ -222,10 +213,15 @@ class Trainer:
         p, needs = self.cfg.ppo, self.policy.buffer_needs()
         discrete = self.policy.discrete
         return RolloutBuffer.allocate(
-            p.rollout_steps, p.num_envs, self.obs_dim,
-            () if discrete else (self.policy.action_dim,), discrete, self.cfg.snn.num_steps,
-            rate=needs.input_spikes, previous=needs.previous,
-        )  # fmt: skip
+            p.rollout_steps,
+            p.num_envs,
+            self.obs_dim,
+            () if discrete else (self.policy.action_dim,),
+            discrete,
+            self.cfg.snn.num_steps,
+            rate=needs.input_spikes,
+            previous=needs.previous,
+        )
 
     def _anneal(self) -> None:
         p = self.cfg.ppo
@@ -242,7 +238,7 @@ class Trainer:
         the rollout short (its progress and normaliser updates are then undone)."""
         p = self.cfg.ppo
         it_start = time.perf_counter()
-        before = copy.deepcopy((self.progress, self.obs_rms))  # restored if cut short
+        before = copy.deepcopy((self.progress, self.obs_rms, self.rollout.reward_scaling))
         self.progress.iteration += 1
         self._anneal()
         stats = IterationStats()
@@ -250,7 +246,7 @@ class Trainer:
             self.policy, self.obs_rms, buf, self.progress, stats, _interrupted
         )
         if not complete:
-            self.progress, self.obs_rms = before
+            self.progress, self.obs_rms, self.rollout.reward_scaling = before
             return None
         rollout_time = time.perf_counter() - it_start
         with torch.no_grad():
@@ -263,12 +259,18 @@ class Trainer:
         losses = self.update(flat) if seq is None else self.update(flat, seq)
         update_time = time.perf_counter() - update_start
         record = self._record(stats, losses, rollout_time, update_time)
-        stop = check(self.cfg, self.progress, self.policy, self.obs_rms, self.track, _interrupted)
-        record.update(stop)
-        record.update(self.evals(self.progress, self.policy, self.obs_rms, self.track,
-                                 _interrupted, self._checkpoint))  # fmt: skip
+        if self.track is not None:  # the stop rule and periodic evaluation drive a track
+            track = self.track
+            record.update(
+                check(self.cfg, self.progress, self.policy, self.obs_rms, track, _interrupted)
+            )
+            record.update(
+                self.evals(
+                    self.progress, self.policy, self.obs_rms, track, _interrupted, self._checkpoint
+                )
+            )
         self.out.log(record, self.progress.global_step)
-        if self.cfg.run.trajectories:
+        if self.cfg.run.trajectories and self.karts:
             self.out.write_trajectories(
                 self.progress.iteration, self.progress.global_step, self.rollout.trajectory()
             )
@@ -368,12 +370,23 @@ class Trainer:
             "charts/update_seconds": update_time,
             **losses,
         }
+        if self.track is None:  # laps, crashes and lap times are a kart env's
+            for key in KART_CHARTS:
+                record[key] = None
         record.update(self.policy.metrics(stats.kind, self.penalty_weights))
         return record
 
     def close(self) -> None:
         self.rollout.close()
         self.out.close()
+
+
+def _resolved(cfg: TrainConfig, rollout: Rollout) -> tuple[TrainConfig, dict[str, object]]:
+    """``cfg`` with a kart env's config in full (config.toml: the whole env), and the spec."""
+    if rollout.karts:
+        return resolved_env_config(cfg, rollout.karts[0]), env_spec(rollout.karts[0])
+    with contextlib.closing(cfg.make_env()) as env:  # as eval and deploy make it
+        return cfg, gym_spec(resolve_env(cfg.env), env, cfg.env_kwargs)
 
 
 def _interrupted() -> bool:

@@ -20,7 +20,7 @@ from snnkart.envs.base import KartEnv
 from snnkart.envs.tracks import Track
 from snnkart.rl.buffer import RolloutBuffer, Sequences
 from snnkart.rl.config import PPOConfig, TrainConfig
-from snnkart.rl.normalise import RunningMeanStd
+from snnkart.rl.normalise import RewardScaling, RunningMeanStd
 from snnkart.rl.policies import ActorCritic
 
 
@@ -42,6 +42,29 @@ class EpisodeEndInfo(gym.Wrapper):  # type: ignore[type-arg]
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, object]]:
         obs, _ = self.env.reset(**kwargs)
         return obs, {}
+
+
+class EpisodeEnd(gym.Wrapper):  # type: ignore[type-arg]
+    """A gymnasium env's steps without their info: training reads none of it (the return and
+    length it counts itself), and a vector env merging every key costs time."""
+
+    def step(self, action: Any) -> tuple[Any, Any, bool, bool, dict[str, object]]:
+        obs, reward, terminated, truncated, _ = self.env.step(action)
+        return obs, reward, terminated, truncated, {}
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, object]]:
+        obs, _ = self.env.reset(**kwargs)
+        return obs, {}
+
+
+KART_CHARTS = (
+    "charts/finishes",
+    "charts/crashes",
+    "charts/lap_time",
+    "charts/cumulative_finishes",
+    "charts/first_finish_step",
+)
+"""The metrics of a kart env's laps (None for any other env)."""
 
 
 def normalize_obs(rms: RunningMeanStd, ppo: PPOConfig, raw: np.ndarray) -> np.ndarray:
@@ -107,17 +130,27 @@ class IterationStats:
     neurons whose integer changed), by name."""
 
 
+class RewardState(TypedDict, total=False):
+    """A checkpoint's ``reward_rms``: ``ppo.norm_reward``'s running return variance."""
+
+    reward_rms: dict[str, torch.Tensor]
+
+
 class Rollout:
     """The training envs and what carries over between rollouts: the next observation and
     the running return and length of every env's episode."""
 
-    def __init__(self, cfg: TrainConfig, track: Track) -> None:
+    def __init__(self, cfg: TrainConfig, track: Track | None) -> None:
+        """``track``: a kart env's (None: a gymnasium env, which has none)."""
         self.cfg, self.ppo = cfg, cfg.ppo
+        wrap = EpisodeEndInfo if track is not None else EpisodeEnd
         self.envs = gym.vector.SyncVectorEnv(
-            [lambda: EpisodeEndInfo(cfg.make_env(track=track))] * cfg.ppo.num_envs,
+            [lambda: wrap(cfg.make_env(track=track))] * cfg.ppo.num_envs,
             autoreset_mode=gym.vector.AutoresetMode.SAME_STEP,
         )
-        self.karts: list[KartEnv] = [e.unwrapped for e in self.envs.envs]  # type: ignore[misc]
+        self.karts: list[KartEnv] = (
+            [e.unwrapped for e in self.envs.envs] if track is not None else []  # type: ignore[misc]
+        )
         for kart in self.karts:
             kart.start_spread = cfg.ppo.start_spread
         steps, envs = cfg.ppo.rollout_steps, cfg.ppo.num_envs
@@ -132,6 +165,19 @@ class Rollout:
         self.episode_start = np.zeros(envs, dtype=bool)
         self.actor_state: torch.Tensor | None = None  # a stateful actor's, per env
         self.start_state: torch.Tensor | None = None  # ... before the last rollout
+        self.reward_scaling = (
+            RewardScaling.new(cfg.ppo.gamma, cfg.ppo.clip_reward) if cfg.ppo.norm_reward else None
+        )
+
+    def reward_scaling_state(self) -> RewardState:
+        """``reward_rms`` (the return variance) for a checkpoint when ``ppo.norm_reward`` is on."""
+        scaling = self.reward_scaling
+        return {} if scaling is None else {"reward_rms": scaling.rms.state()}
+
+    def restore_reward_scaling(self, state: Mapping[str, Any]) -> None:
+        """Take the return variance back from a checkpoint's ``state`` (where it has one)."""
+        if self.reward_scaling is not None and "reward_rms" in state:
+            self.reward_scaling.rms = RunningMeanStd.from_state(state["reward_rms"])
 
     def reset(self, seed: int) -> None:
         self.next_raw, _ = self.envs.reset(seed=seed)
@@ -140,6 +186,8 @@ class Rollout:
         self.ep_length = np.zeros(self.ppo.num_envs, dtype=np.int64)
         self.fresh[:] = True
         self.actor_state = None  # every env starts an episode: zero state
+        if self.reward_scaling is not None:
+            self.reward_scaling.returns = None  # ... and a discounted return from zero
 
     def collect(
         self,
@@ -155,7 +203,8 @@ class Rollout:
         self.positions[:] = 0.0
         self.ends[:] = False
         self.reset_positions[:] = 0.0
-        self.first_positions[:] = [kart.position for kart in self.karts]
+        if self.karts:
+            self.first_positions[:] = [kart.position for kart in self.karts]
         self.episode_start[:], self.fresh[:] = self.fresh, False
         if policy.carries_state and self.actor_state is None:
             self.actor_state = policy.initial_state(E)
@@ -210,7 +259,7 @@ class Rollout:
         self.next_raw, reward, terminated, truncated, info = self.envs.step(action)
         reward = reward.astype(np.float64)
         done = terminated | truncated
-        if self.cfg.run.trajectories:
+        if self.cfg.run.trajectories and self.karts:
             self.positions[step] = [
                 info["final_info"]["position"][i] if done[i] else kart.position
                 for i, kart in enumerate(self.karts)
@@ -220,13 +269,15 @@ class Rollout:
                 self.reset_positions[step, i] = self.karts[i].position
         self.ep_return += reward
         self.ep_length += 1
+        if self.reward_scaling is not None:  # learning sees scaled rewards, the stats raw ones
+            reward = self.reward_scaling(reward, done)
         if truncated.any():
             final = self.final_values(policy, obs_rms, info["final_obs"], truncated)
             reward = reward + self.ppo.gamma * final
         buf.rewards[step] = torch.from_numpy(reward.astype(np.float32))
         buf.ends[step] = torch.from_numpy(done.astype(np.float32))
         for i in np.flatnonzero(done):
-            self._episode_end(info["final_info"], i, progress, stats)
+            self._episode_end(info.get("final_info", {}), i, progress, stats)
 
     def sequences(self, buf: RolloutBuffer) -> Sequences | None:
         """The last rollout as env sequences (a stateful actor's), else None."""
@@ -274,7 +325,7 @@ class Rollout:
         self, final: Mapping[str, np.ndarray], i: int, progress: Progress, stats: IterationStats
     ) -> None:
         """Env ``i``'s episode ended; ``final``: the vector env's ``info["final_info"]``."""
-        finished = bool(final["lap_finished"][i])
+        finished = bool(final["lap_finished"][i]) if "lap_finished" in final else False
         progress.episodes += 1
         stats.returns.append(float(self.ep_return[i]))
         stats.lengths.append(int(self.ep_length[i]))
@@ -284,7 +335,7 @@ class Rollout:
             progress.finishes += 1
             if progress.first_finish_step < 0:
                 progress.first_finish_step = progress.global_step
-        if bool(final["crashed"][i]):
+        if "crashed" in final and bool(final["crashed"][i]):
             stats.crashes += 1
         self.ep_return[i], self.ep_length[i] = 0.0, 0
 

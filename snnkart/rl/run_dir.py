@@ -22,7 +22,7 @@ import numpy as np
 from snnkart.envs.base import KartEnv
 from snnkart.envs.spec import env_spec, spec_hash, trained_env_config
 from snnkart.envs.tracks import Track, TrackError, embedded_track, load_track
-from snnkart.errors import CheckpointError
+from snnkart.errors import CheckpointError, RunError
 from snnkart.io import atomic_path
 from snnkart.rl.checkpoint import CheckpointMeta, CheckpointState, save_checkpoint
 from snnkart.rl.config import TrainConfig, read_run_config
@@ -229,3 +229,23 @@ class RunDir:
         if self.wandb is not None:
             self.wandb.close()
             self.wandb = None
+
+
+def config_to_train(
+    cfg: TrainConfig, run_dir: Path, resume: bool, total_steps: int | None
+) -> TrainConfig:
+    """The config to train with: ``cfg``, or on resume the run's own, with its own length
+    unless ``total_steps`` extends (or shortens) it explicitly."""
+    config_path = run_dir / "config.toml"
+    if resume:
+        if not config_path.is_file():
+            raise RunError(f"nothing to resume in {run_dir}: no config.toml there")
+        saved = read_run_config(run_dir)
+        if total_steps is not None and total_steps != saved.total_steps:
+            saved = saved.model_copy(update={"total_steps": total_steps})
+        return saved
+    if config_path.exists():
+        raise RunError(
+            f"{run_dir} already holds a run; pass --resume to continue it or choose another --out"
+        )
+    return cfg

@@ -45,6 +45,12 @@ class PPOConfig(_Section):
     norm_adv: bool = True
     norm_obs: bool = Field(True, description="running mean/std observation normalisation")
     clip_obs: float = Field(10.0, gt=0.0)
+    norm_reward: bool = Field(
+        False,
+        description="reward scaling as Stable-Baselines3's VecNormalize: each reward divided by "
+        "the running std of the discounted return (ppo.gamma), clipped to +-clip_reward",
+    )
+    clip_reward: float = Field(10.0, gt=0.0)
     init_log_std: float = Field(-0.5, description="continuous actions: initial log std")
     start_spread: float = Field(
         0.0,
@@ -60,9 +66,10 @@ class ANNConfig(_Section):
 
     hidden: tuple[int, ...] = (128, 128)
     activation: Literal["tanh", "relu"] = Field(
-        "tanh", description="the ANN policy's hidden activation, actor and critic (the SNN's "
-        "critic stays tanh); relu: what a sigma-delta or int8 chip computes exactly"
-    )  # fmt: skip
+        "tanh",
+        description="the ANN policy's hidden activation, actor and critic (the SNN's "
+        "critic stays tanh); relu: what a sigma-delta or int8 chip computes exactly",
+    )
 
 
 MAX_SPIKING_LAYERS = 3

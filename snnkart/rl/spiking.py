@@ -111,10 +111,14 @@ class SpikingActor(nn.Module):
 def _neuron(cfg: SNNConfig) -> snn.Leaky:
     """One spiking layer's neurons: reset to zero right after a spike (Lava's semantics)."""
     common = dict(
-        beta=torch.tensor(cfg.beta), threshold=torch.tensor(cfg.threshold),
-        spike_grad=surrogate.fast_sigmoid(slope=cfg.surrogate_slope), reset_mechanism="zero",
-        reset_delay=False, learn_beta=cfg.learn_beta, learn_threshold=cfg.learn_threshold,
-    )  # fmt: skip
+        beta=torch.tensor(cfg.beta),
+        threshold=torch.tensor(cfg.threshold),
+        spike_grad=surrogate.fast_sigmoid(slope=cfg.surrogate_slope),
+        reset_mechanism="zero",
+        reset_delay=False,
+        learn_beta=cfg.learn_beta,
+        learn_threshold=cfg.learn_threshold,
+    )
     if cfg.neuron == "cuba":
         return snn.Synaptic(alpha=torch.tensor(cfg.alpha), learn_alpha=cfg.learn_alpha, **common)
     return snn.Leaky(**common)

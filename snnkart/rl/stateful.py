@@ -76,9 +76,12 @@ def stream_step(
 
 
 def stream_sequence(
-    actor: Any, x: torch.Tensor, state: torch.Tensor, starts: torch.Tensor,
+    actor: Any,
+    x: torch.Tensor,
+    state: torch.Tensor,
+    starts: torch.Tensor,
     loops: Sequence[torch.nn.Linear] = (),
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:  # fmt: skip
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Env sequences: ``x`` ``[S * E, n_in]`` time-major (row ``s * E + e``), ``state`` the state
     before step 0 ``[E, D]``, ``starts`` ``[S, E]`` 1 where an episode begins at step ``s`` (the
     state is zeroed there). Returns the readouts ``[S * E, n_out]`` in the same order, the mean

@@ -23,9 +23,12 @@ from snnkart.rl.stateful import split_state
 
 
 def fused_stream_sequence(
-    actor: Any, x: torch.Tensor, state: torch.Tensor, starts: torch.Tensor,
+    actor: Any,
+    x: torch.Tensor,
+    state: torch.Tensor,
+    starts: torch.Tensor,
     loops: Sequence[torch.nn.Linear] = (),
-) -> tuple[torch.Tensor, torch.Tensor, None]:  # fmt: skip
+) -> tuple[torch.Tensor, torch.Tensor, None]:
     """:func:`snnkart.rl.stateful.stream_sequence` layer by layer (module docstring): the
     readouts ``[S * E, n_out]`` and the mean firing rates ``[K]``; no final state (the update
     does not need it). With ``loops`` (a recurrent actor: layer i >= 1's recurrent synapse is
@@ -52,8 +55,11 @@ def fused_stream_sequence(
         beta = lif.beta.clamp(0, 1)
         if i > 0 and loops:
             weight = loops[i - 1].weight
-            spikes.append(FusedRecurrentLIF.apply(
-                inp, mems[i], prev[i], zero_at, weight, beta, lif.threshold, slope))  # fmt: skip
+            spikes.append(
+                FusedRecurrentLIF.apply(
+                    inp, mems[i], prev[i], zero_at, weight, beta, lif.threshold, slope
+                )
+            )
             continue
         spikes.append(lif_rows(inp, beta, lif.threshold, slope, u0=mems[i], zero_at=zero_at))
     last = spikes[-1].reshape(S, W, E, sizes[-1])[:, L:].mean(1)

@@ -29,8 +29,12 @@ def rosmaster(start_timeout: float = 20.0) -> Iterator[str]:
     port = free_port()
     uri = f"http://127.0.0.1:{port}/"
     env = {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1"}
-    proc = subprocess.Popen([exe, "--core", "-p", str(port)], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    proc = subprocess.Popen(
+        [exe, "--core", "-p", str(port)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + start_timeout
         while True:
@@ -53,5 +57,9 @@ def rosmaster(start_timeout: float = 20.0) -> Iterator[str]:
 
 def ros_env(uri: str) -> dict[str, str]:
     """The environment of a process that talks to the master at ``uri``."""
-    return {**os.environ, "ROS_MASTER_URI": uri, "ROS_HOSTNAME": "127.0.0.1",
-            "SDL_VIDEODRIVER": "dummy"}  # fmt: skip
+    return {
+        **os.environ,
+        "ROS_MASTER_URI": uri,
+        "ROS_HOSTNAME": "127.0.0.1",
+        "SDL_VIDEODRIVER": "dummy",
+    }

@@ -45,10 +45,15 @@ class DriveResult:
 
 class DriveNode:
     def __init__(
-        self, env: Any, predictor: Any, lock_step: bool, timeout: float = 2.0,
-        rate: float = 1 / DT, limits: tuple[float | None, float | None] = (None, None),
+        self,
+        env: Any,
+        predictor: Any,
+        lock_step: bool,
+        timeout: float = 2.0,
+        rate: float = 1 / DT,
+        limits: tuple[float | None, float | None] = (None, None),
         frame: OdomFrame | None = None,
-    ) -> None:  # fmt: skip
+    ) -> None:
         self.ros = import_ros()
         self.builder = ObservationBuilder(env, frame)
         self.commands = VelocityCommands(env, *limits)
@@ -71,8 +76,13 @@ class DriveNode:
         rospy.Subscriber("/odom", msgs["nav_msgs.msg"].Odometry, self._on_odom)
 
     def _on_scan(self, msg: Any) -> None:
-        scan = Scan(msg.angle_min, msg.angle_increment, np.asarray(msg.ranges, dtype=np.float64),
-                    msg.range_min, msg.range_max)  # fmt: skip
+        scan = Scan(
+            msg.angle_min,
+            msg.angle_increment,
+            np.asarray(msg.ranges, dtype=np.float64),
+            msg.range_min,
+            msg.range_max,
+        )
         self.last_seen["scan"] = time.monotonic()  # outside the lock: a slow act is not silence
         with self.lock:
             self.scan = (msg.header.stamp.to_sec(), scan)
@@ -81,8 +91,9 @@ class DriveNode:
 
     def _on_odom(self, msg: Any) -> None:
         p, q, t = msg.pose.pose, msg.pose.pose.orientation, msg.twist.twist
-        odom = Odom(p.position.x, p.position.y, yaw_from_quaternion(q.z, q.w), t.linear.x,
-                    t.angular.z)  # fmt: skip
+        odom = Odom(
+            p.position.x, p.position.y, yaw_from_quaternion(q.z, q.w), t.linear.x, t.angular.z
+        )
         self.last_seen["odometry"] = time.monotonic()
         with self.lock:
             self.odom = (msg.header.stamp.to_sec(), odom)

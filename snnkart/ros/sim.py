@@ -46,9 +46,13 @@ class SimBridge:
     """The env behind the topics; ``run()`` drives one episode."""
 
     def __init__(
-        self, env: Any, seed: int, lock_step: bool, timeout: float = 30.0,
+        self,
+        env: Any,
+        seed: int,
+        lock_step: bool,
+        timeout: float = 30.0,
         odom_origin: str = "track",
-    ) -> None:  # fmt: skip
+    ) -> None:
         self.ros = import_ros()
         self.env = env
         self.unwrapped = env.unwrapped
@@ -151,8 +155,9 @@ class SimBridge:
             if terminated or truncated:
                 result.finished = bool(info["lap_finished"])
                 result.lap_time, result.crashed = info["lap_time"], bool(info["crashed"])
-                result.ended = "finished" if result.finished else ("crashed" if result.crashed
-                                                                   else "ended")  # fmt: skip
+                result.ended = (
+                    "finished" if result.finished else ("crashed" if result.crashed else "ended")
+                )
                 break
         result.wall_seconds = time.monotonic() - start
         return result

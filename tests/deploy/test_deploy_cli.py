@@ -122,7 +122,7 @@ def test_cli_deploy_lava_fixed_writes_the_record(exported: Path, tmp_path: Path)
     )  # fmt: skip
     assert result.exit_code == 0, result.output
     record = json.loads((out / "deploy.json").read_text())
-    assert record["schema"] == DEPLOY_SCHEMA == "snnkart/deploy/v2"
+    assert record["schema"] == DEPLOY_SCHEMA == "snnkart/deploy/v4"
     for key in ("summary", "counts", "parity", "timing", "quantization", "episodes"):
         assert key in record, key
     assert record["backend"] == "lava-sim" and record["precision"] == "fixed"

@@ -43,10 +43,12 @@ REGISTRY: dict[str, Entry] = {
     for e in (
         Entry("ann", "ann", "an MLP actor (tanh, or ReLU: converts to sigma-delta)"),
         Entry("snn", "lif", "a LIF spiking actor (snntorch); stateful with snn.stateful=true"),
-        Entry("sdnn", "sigma_delta", "a sigma-delta actor: a ReLU MLP trained on the chip's integers"),
+        Entry(
+            "sdnn", "sigma_delta", "a sigma-delta actor: a ReLU MLP trained on the chip's integers"
+        ),
         Entry("rsnn", "lif", "a recurrent LIF actor: recurrent synapses, state across env steps"),
     )
-}  # fmt: skip
+}
 
 
 def names() -> tuple[str, ...]:

@@ -38,9 +38,12 @@ class PolicySpace:
         obs = env.observation_space
         assert isinstance(obs, gym.spaces.Box)
         return cls(
-            int(obs.low.shape[0]), action_dim, discrete,
-            obs.low.astype(np.float64), obs.high.astype(np.float64),
-        )  # fmt: skip
+            int(obs.low.shape[0]),
+            action_dim,
+            discrete,
+            obs.low.astype(np.float64),
+            obs.high.astype(np.float64),
+        )
 
 
 def _no_problem(cfg: Any) -> None:

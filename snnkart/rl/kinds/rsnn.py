@@ -38,6 +38,7 @@ from torch import nn
 from snnkart.errors import ExportError
 from snnkart.rl.kinds.base import Kind, PolicySpace
 from snnkart.rl.kinds.snn import KIND as SNN
+from snnkart.rl.kinds.snn import spiking
 from snnkart.rl.lif_nir import NIRGraph, lif_graph
 from snnkart.rl.policies import ActorCritic, StatefulSNNPolicy
 from snnkart.rl.stateful_config import stateful_problem
@@ -92,11 +93,7 @@ class RecurrentLIFPolicy(StatefulSNNPolicy):
 
 
 def build(cfg: Any, space: PolicySpace) -> ActorCritic:
-    return RecurrentLIFPolicy(
-        space.obs_dim, space.action_dim, space.discrete, cfg.snn, cfg.ann.hidden,
-        space.obs_low, space.obs_high, cfg.ppo.init_log_std,
-        recurrent_gain=cfg.rsnn.recurrent_gain,
-    )  # fmt: skip
+    return spiking(RecurrentLIFPolicy, cfg, space, recurrent_gain=cfg.rsnn.recurrent_gain)
 
 
 def check(cfg: Any) -> None:

@@ -1,5 +1,5 @@
 """``policy = "sdnn"``: a sigma-delta actor, the ReLU MLP whose forward pass is Lava's integer
-chain (:mod:`snnkart.rl.sdnn`, :class:`~snnkart.rl.policies.SDNNPolicy`, docs/sigma-delta.md)."""
+chain (:mod:`snnkart.rl.sigma_delta`, :class:`~snnkart.rl.policies.SDNNPolicy`, docs/sigma-delta.md)."""
 
 from __future__ import annotations
 
@@ -8,14 +8,19 @@ from typing import Any
 from snnkart.rl.kinds import ann
 from snnkart.rl.kinds.base import Kind, PolicySpace
 from snnkart.rl.policies import ActorCritic, SDNNPolicy
-from snnkart.rl.sdnn_config import SDNNConfig
+from snnkart.rl.sigma_delta_config import SDNNConfig
 
 
 def build(cfg: Any, space: PolicySpace) -> ActorCritic:
     return SDNNPolicy(
-        space.obs_dim, space.action_dim, space.discrete, cfg.sdnn, cfg.ann.hidden,
-        cfg.ppo.clip_obs, cfg.ppo.init_log_std,
-    )  # fmt: skip
+        space.obs_dim,
+        space.action_dim,
+        space.discrete,
+        cfg.sdnn,
+        cfg.ann.hidden,
+        cfg.ppo.clip_obs,
+        cfg.ppo.init_log_std,
+    )
 
 
 KIND = Kind(

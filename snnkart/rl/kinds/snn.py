@@ -11,12 +11,24 @@ from snnkart.rl.policies import ActorCritic, SNNPolicy, StatefulSNNPolicy
 from snnkart.rl.stateful_config import stateful_problem
 
 
-def build(cfg: Any, space: PolicySpace) -> ActorCritic:
-    cls = StatefulSNNPolicy if cfg.snn.stateful else SNNPolicy
+def spiking(cls: type[SNNPolicy], cfg: Any, space: PolicySpace, **extra: Any) -> ActorCritic:
+    """A LIF actor of class ``cls`` for ``space``, from the config's snn, ann (the critic's
+    widths) and ppo sections; ``extra``: the class's own arguments."""
     return cls(
-        space.obs_dim, space.action_dim, space.discrete, cfg.snn, cfg.ann.hidden,
-        space.obs_low, space.obs_high, cfg.ppo.init_log_std,
-    )  # fmt: skip
+        space.obs_dim,
+        space.action_dim,
+        space.discrete,
+        cfg.snn,
+        cfg.ann.hidden,
+        space.obs_low,
+        space.obs_high,
+        cfg.ppo.init_log_std,
+        **extra,
+    )
+
+
+def build(cfg: Any, space: PolicySpace) -> ActorCritic:
+    return spiking(StatefulSNNPolicy if cfg.snn.stateful else SNNPolicy, cfg, space)
 
 
 def label(cfg: Any) -> str:

@@ -1,0 +1,123 @@
+"""A zoo study end to end at a tiny budget (snnkart's ANN and SB3 PPO on CartPole-v1, two
+seeds), its resumability, its statistics against hand computation, and its config's refusals."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from snnkart.app.reporter import Silent
+from snnkart.app.zoo_study import (
+    ZooStudyConfig,
+    ZooStudyRecord,
+    load_zoo_config,
+    run_zoo_study,
+)
+from snnkart.errors import ConfigError
+from snnkart.report.zoo_record import bootstrap_iqm, iqm
+
+CONFIG = """schema = "snnkart/zoo-study-config/v1"
+name = "tiny"
+data = "tuning"
+env = "CartPole-v1"
+policies = ["ann", "sb3"]
+seeds = [1, 2]
+steps = 512
+eval_episodes = 2
+eval_seed = 10000
+deploy_episodes = 1
+"""
+
+
+def test_iqm_is_the_mean_of_the_middle_half_as_scipy_trims_it() -> None:
+    assert iqm(np.array([0.0, 1.0, 2.0, 3.0, 100.0])) == pytest.approx(2.0)  # cuts 1 each end
+    assert iqm(np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 1000.0])) == pytest.approx(4.5)
+    assert iqm(np.array([3.0, 5.0])) == pytest.approx(4.0)  # int(0.5) = 0 cut
+    low, high = bootstrap_iqm([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert 1.0 <= low < 3.0 < high <= 5.0
+
+
+@pytest.mark.timeout(600)
+def test_a_tiny_zoo_study_trains_scores_and_resumes(tmp_path: Path) -> None:
+    pytest.importorskip("stable_baselines3", reason="optional: stable-baselines3 (the bench extra)")
+    (tmp_path / "tiny.toml").write_text(CONFIG)
+    cfg = load_zoo_config(tmp_path / "tiny.toml")
+    assert cfg is not None
+    record = run_zoo_study(cfg, tmp_path / "out", Silent())
+    assert ZooStudyRecord.read(tmp_path / "out/zoo-study.json") == record
+    assert [(r.policy, r.seed) for r in record.runs] == [
+        ("ann", 1),
+        ("ann", 2),
+        ("sb3", 1),
+        ("sb3", 2),
+    ]
+    assert all(r.global_step >= 512 and r.summary.episodes == 2 for r in record.runs)
+    ann = record.scores[0]
+    assert ann.policy == "ann" and ann.normalised == pytest.approx(1.0)
+    assert ann.mean == pytest.approx(np.mean([r.summary.mean_return for r in record.runs[:2]]))
+    assert record.reward_threshold == 475.0 and ann.solved_seeds is not None
+    assert "Stable-Baselines3 PPO" in (tmp_path / "out/zoo-study.md").read_text()
+    assert record.deployed == [] and record.commit  # no spiking kind in this study
+    stamp = (tmp_path / "out/ann-s1/checkpoint.pt").stat().st_mtime
+    again = run_zoo_study(cfg, tmp_path / "out", Silent())  # every run reused
+    assert (tmp_path / "out/ann-s1/checkpoint.pt").stat().st_mtime == stamp
+    assert again.scores == record.scores
+
+
+@pytest.mark.parametrize(
+    ("change", "words"),
+    [
+        ('data = "tuning"', 'data = "reporting"'),
+        ('policies = ["ann", "sb3"]', 'policies = ["dqn"]'),
+    ],
+)
+def test_a_bad_zoo_config_is_refused(tmp_path: Path, change: str, words: str) -> None:
+    (tmp_path / "bad.toml").write_text(CONFIG.replace(change, words))
+    match = "seeds 101 and up" if "reporting" in words else "policies are"
+    with pytest.raises(ConfigError, match=match):
+        ZooStudyConfig.read(tmp_path / "bad.toml")
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize(
+    "path", sorted((ROOT / "studies/zoo").glob("*.toml")), ids=lambda p: p.stem
+)
+def test_the_committed_zoo_studies_load_on_reporting_seeds(path: Path) -> None:
+    from snnkart.rl.zoo import zoo_settings
+
+    cfg = ZooStudyConfig.read(path)
+    assert cfg.data == "reporting" and min(cfg.seeds) >= 101
+    assert set(cfg.policies) == {"ann", "snn", "sdnn", "sb3"}
+    assert zoo_settings(cfg.env).values["n_timesteps"]
+
+
+@pytest.mark.timeout(600)
+def test_a_zoo_studys_spiking_seed_deploys_bit_exact_on_lava(tmp_path: Path) -> None:
+    pytest.importorskip("lava", reason="optional: lava-nc (the lava extra)")
+    (tmp_path / "tiny.toml").write_text(
+        CONFIG.replace('["ann", "sb3"]', '["snn"]').replace("[1, 2]", "[3]")
+    )
+    cfg = load_zoo_config(tmp_path / "tiny.toml")
+    assert cfg is not None
+    record = run_zoo_study(cfg, tmp_path / "out", Silent())
+    (deployed,) = record.deployed
+    assert deployed.policy == "snn" and deployed.seed == 3 and deployed.env_steps > 0
+    assert deployed.mismatched_windows == 0 and deployed.mismatched_actions == 0
+    assert record.scores[0].normalised is None  # no ANN in the study: nothing to normalise by
+    assert "on lava-sim fixed" in (tmp_path / "out/zoo-study.md").read_text()
+
+
+def test_the_published_cartpole_study_solves_on_every_seed_and_deploys_bit_exact() -> None:
+    """docs/zoo.md's CartPole-v1 claim: every kind (and SB3) reaches gymnasium's threshold on
+    every reporting seed, and each spiking kind's deployed seed is bit-exact on Lava."""
+    record = ZooStudyRecord.read(ROOT / "docs/zoo/cartpole.json")
+    assert record.data == "reporting" and not record.commit.endswith("-dirty")
+    assert {s.policy for s in record.scores} == {"ann", "snn", "sdnn", "sb3"}
+    for s in record.scores:
+        assert len(s.returns) == 5 and s.solved_seeds == 5, s.policy
+    assert {d.policy for d in record.deployed} == {"snn", "sdnn"}
+    assert all(d.mismatched_windows == 0 and d.mismatched_actions == 0 for d in record.deployed)
