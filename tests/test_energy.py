@@ -25,6 +25,8 @@ from snnkart.energy.pricing import Comparison, ann_terms, terms, total
 from snnkart.energy.profiles import BUILTIN, load_profile, parse_profile
 from snnkart.errors import ProfileError
 
+pytestmark = pytest.mark.xdist_group("energy")  # one worker builds the module's fixtures once
+
 ROOT = Path(__file__).resolve().parents[1]
 FIXTURE = ROOT / "tests" / "data" / "policies" / "grid-snn"
 COMMITTED_NIR = ROOT / "tests" / "data" / "policies" / "grid-snn-nir-8ddd6dd" / "policy.nir"

@@ -24,6 +24,10 @@ from snnkart.rl.periodic_eval import score_key
 from snnkart.rl.ppo import Trainer
 from snnkart.rl.run_dir import checkpoint_path
 
+pytestmark = pytest.mark.xdist_group(
+    "periodic_eval"
+)  # one worker builds the module's fixtures once
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover

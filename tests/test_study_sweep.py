@@ -18,6 +18,8 @@ from snnkart.energy.pricing import terms, total
 from snnkart.energy.profiles import load_profile
 from snnkart.errors import ReportError
 
+pytestmark = pytest.mark.xdist_group("study_sweep")  # one worker builds the module's fixtures once
+
 ROOT = Path(__file__).resolve().parents[1]
 SNNKART = [sys.executable, "-m", "snnkart.cli"]
 OLD_STUDY = Path(__file__).parent / "data" / "records" / "study-v1.json"

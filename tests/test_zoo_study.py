@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from snnkart.app.report import build_report
 from snnkart.app.reporter import Silent
 from snnkart.app.zoo_study import (
     ZooStudyConfig,
@@ -109,6 +110,20 @@ def test_a_zoo_studys_spiking_seed_deploys_bit_exact_on_lava(tmp_path: Path) -> 
     assert deployed.mismatched_windows == 0 and deployed.mismatched_actions == 0
     assert record.scores[0].normalised is None  # no ANN in the study: nothing to normalise by
     assert "on lava-sim fixed" in (tmp_path / "out/zoo-study.md").read_text()
+    # its energy is the one snnkart report gives the same deployment: Loihi 2 against the int8
+    # ANN of the deployed widths, the same joint sample
+    e = deployed.energy
+    assert e is not None and (e.chip, e.baseline) == ("loihi2", "horowitz45_int8")
+    report = build_report(Path(deployed.deploy_dir), None, None)
+    (row,) = [
+        c
+        for c in report["comparisons"]  # type: ignore[attr-defined]
+        if (c["snn_profile"], c["ann"], c["ann_profile"]) == (e.chip, "same_width", e.baseline)
+    ]
+    assert report["ann"]["same_width"]["label"] == e.ann  # type: ignore[index]
+    assert row["uncertainty"]["ratio"]["median"] == pytest.approx(e.ratio.median)
+    assert row["uncertainty"]["ann_pj"]["p95"] == pytest.approx(e.ann_pj.p95)
+    assert f"{e.ratio.median:.3g}x" in (tmp_path / "out/zoo-study.md").read_text()
 
 
 def test_the_published_cartpole_study_solves_on_every_seed_and_deploys_bit_exact() -> None:

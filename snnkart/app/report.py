@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, cast
 
 from snnkart.app.report_comparisons import comparisons, memory_first, sensitivity
-from snnkart.app.report_sigma_delta import sd_report, stateful_note
+from snnkart.app.report_sigma_delta import same_shape_ann, sd_report, stateful_note
 from snnkart.app.report_sweep import sweep_section
 from snnkart.app.reporter import Reporter
 from snnkart.app.sanafe_report import sanafe_section
@@ -31,6 +31,7 @@ from snnkart.contract.report_record import (
     lif_report,
 )
 from snnkart.contract.sanafe_record import SanafeSection
+from snnkart.energy import goal
 from snnkart.energy.counts import AnnCounts, SnnCounts
 from snnkart.energy.pricing import CONTROL_PERIOD_S
 from snnkart.energy.profiles import (
@@ -39,6 +40,7 @@ from snnkart.energy.profiles import (
     Profile,
     load_profile,
 )
+from snnkart.energy.sigma_delta_counts import SigmaDeltaCounts
 from snnkart.energy.uncertainty import method
 from snnkart.errors import ReportError
 
@@ -183,19 +185,36 @@ def _anns(
 ) -> dict[str, tuple[AnnCounts, AnnRunTask | None]]:
     """The ANN baselines: the same widths (taking the observation itself, not a population
     code of it), and the user's ANN run if given."""
-    net = snn.net
-    widths = (net.obs_dim, *net.sizes, net.n_out) if net.readout else (net.obs_dim, *net.sizes)
-    anns: dict[str, tuple[AnnCounts, AnnRunTask | None]] = {
-        "same_width": (
-            AnnCounts(
-                widths, net.action_mode, f"ANN {'-'.join(map(str, net.sizes))} (same widths)"
-            ),
-            None,
-        ),
-    }
+    anns: dict[str, tuple[AnnCounts, AnnRunTask | None]] = {"same_width": (same_width(snn), None)}
     if ann_dir is not None:
         anns["run"] = _ann_run(ann_dir, record)
     return anns
+
+
+def same_width(snn: SnnCounts) -> AnnCounts:
+    """The ANN of the LIF deployment's widths, taking the observation itself (not a population
+    code of it)."""
+    net = snn.net
+    widths = (net.obs_dim, *net.sizes, net.n_out) if net.readout else (net.obs_dim, *net.sizes)
+    return AnnCounts(widths, net.action_mode, f"ANN {'-'.join(map(str, net.sizes))} (same widths)")
+
+
+def priced_deployment(
+    deploy_dir: Path, chip: str = goal.PRIMARY, baseline: str = goal.INT8
+) -> tuple[goal.Priced, AnnCounts]:
+    """The deployment (a policy of any family) on ``chip`` against the ANN of its own widths on
+    ``baseline``, at the deployment's control rate (the pair :func:`goal.check` samples), and
+    that ANN."""
+    record = read_deploy(deploy_dir)
+    period, _ = control_period(record, None)
+    policy: SnnCounts | SigmaDeltaCounts
+    if record.counts.sigma_delta is not None:
+        policy = replace(SigmaDeltaCounts.of_deploy(record), period_s=period)
+        ann = same_shape_ann(policy)
+    else:
+        policy = replace(SnnCounts.of_deploy(record), period_s=period)
+        ann = same_width(policy)
+    return goal.priced_policy(policy, load_profile(chip), load_profile(baseline), ann), ann
 
 
 def control_period(record: DeployRecord, control_hz: float | None) -> tuple[float, str]:

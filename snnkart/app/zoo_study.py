@@ -29,7 +29,15 @@ from snnkart.app.provenance import git_commit
 from snnkart.app.reporter import Reporter, Silent
 from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.errors import ConfigError
-from snnkart.report.zoo_record import ZOO_STUDY, ZooDeploy, ZooRun, ZooStudyRecord, scores
+from snnkart.report.zoo_record import (
+    ZOO_STUDY,
+    Sampled,
+    ZooDeploy,
+    ZooEnergy,
+    ZooRun,
+    ZooStudyRecord,
+    scores,
+)
 from snnkart.rl import kinds
 
 CONFIG_SCHEMA = "snnkart/zoo-study-config/v1"
@@ -314,6 +322,25 @@ def _deployed(
         float32_identical_action_fraction=p.float32_identical_action_fraction,
         synops_per_env_step=synops / max(c.env_steps, 1),
         ms_per_env_step=r.timing.ms_per_env_step,
+        energy=_energy(out),
+    )
+
+
+def _energy(deploy_dir: Path) -> ZooEnergy:
+    """The deployment's energy per decision on Loihi 2 against the int8 ANN of its widths."""
+    from snnkart.app.report import priced_deployment
+    from snnkart.energy import goal
+
+    p, ann = priced_deployment(deploy_dir)
+    c = goal.check(p, 1.0)
+    return ZooEnergy(
+        chip=p.chip,
+        baseline=p.baseline,
+        ann=ann.label,
+        snn_pj=Sampled(**c["snn_pj"]),
+        ann_pj=Sampled(**c["ann_pj"]),
+        ratio=Sampled(**c["ratio"]),
+        period_s=p.period_s,
     )
 
 

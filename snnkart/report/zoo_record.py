@@ -12,7 +12,8 @@ import numpy as np
 from snnkart.contract.eval_record import EvalSummary
 from snnkart.contract.records import OMIT_NONE, Record, RecordKind
 
-ZOO_STUDY = RecordKind("zoo-study", 1, rerun="snnkart study")
+ZOO_STUDY = RecordKind("zoo-study", 2, rerun="snnkart study")
+"""v2: a deployed seed's ``energy`` (a v1 file loads without it)."""
 BOOTSTRAP = 2000
 """Resamples of the runs for the IQM's interval."""
 
@@ -31,6 +32,31 @@ class ZooRun:
 
 
 @dataclass(frozen=True)
+class Sampled:
+    """A sampled energy or ratio: its median and 5th-95th percentile (None: not finite)."""
+
+    median: float | None
+    p05: float | None
+    p95: float | None
+
+
+@dataclass(frozen=True)
+class ZooEnergy:
+    """A deployed seed's dynamic energy per decision on ``chip`` against the ANN of the same
+    widths in int8 on ``baseline`` (both sides priced from the same profiles, every price range
+    sampled together: median and 90 % interval). Static power is left out (``period_s`` is the
+    control period it would be taken over)."""
+
+    chip: str
+    baseline: str
+    ann: str  # the ANN's label (its widths)
+    snn_pj: Sampled
+    ann_pj: Sampled
+    ratio: Sampled  # policy / ANN
+    period_s: float
+
+
+@dataclass(frozen=True)
 class ZooDeploy:
     """One seed of a spiking kind exported to NIR and run closed loop on Lava's simulated
     Loihi in fixed point, every env step checked against the numpy reference."""
@@ -45,6 +71,7 @@ class ZooDeploy:
     float32_identical_action_fraction: float | None  # against the torch-order float32 policy
     synops_per_env_step: float  # summed over layers (sigma-delta: synaptic events)
     ms_per_env_step: float
+    energy: ZooEnergy | None = field(default=None, metadata=OMIT_NONE)  # None: a v1 file
 
 
 @dataclass(frozen=True)
@@ -66,7 +93,7 @@ class PolicyScore:
 
 @dataclass(frozen=True)
 class ZooStudyRecord(Record):
-    """``zoo-study.json`` (``snnkart/zoo-study/v1``)."""
+    """``zoo-study.json`` (``snnkart/zoo-study/v2``)."""
 
     KIND = ZOO_STUDY
 

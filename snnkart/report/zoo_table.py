@@ -63,5 +63,25 @@ def _deployed_line(d: Any) -> str:
         f"({d.summary.episodes} episodes): return {d.summary.mean_return:.1f}, "
         f"{d.mismatched_windows} of {d.env_steps} env steps differ from the numpy reference "
         f"(bit-exact: 0){agreement}, {d.synops_per_env_step:,.0f} synaptic operations per env "
-        "step"
+        f"step{_energy(d.energy)}"
+    )
+
+
+def _g(x: float | None, scale: float = 1.0) -> str:
+    return "-" if x is None else f"{x / scale:.3g}"
+
+
+def _energy(e: Any) -> str:
+    """A deployed seed's energy per decision against the same-width int8 ANN (a v1 record has
+    none)."""
+    if e is None:
+        return ""
+    s, a, r = e.snn_pj, e.ann_pj, e.ratio
+    return (
+        f"; dynamic energy per decision on {e.chip} {_g(s.median, 1e3)} nJ "
+        f"[{_g(s.p05, 1e3)}, {_g(s.p95, 1e3)}] against {_g(a.median, 1e3)} nJ "
+        f"[{_g(a.p05, 1e3)}, {_g(a.p95, 1e3)}] for the {e.ann} on {e.baseline}: "
+        f"{_g(r.median)}x [{_g(r.p05)}, {_g(r.p95)}] (medians and 90 % intervals, every price "
+        f"range sampled together; static power over the {1e3 * e.period_s:.3g} ms control "
+        "period left out)"
     )

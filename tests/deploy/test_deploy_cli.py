@@ -27,6 +27,8 @@ from snnkart.contract.records import to_data
 from snnkart.eval.closed_loop import DEPLOY_SCHEMA, DeployRequest, run_deploy
 from snnkart.rl.trained import TorchPredictor, load_run
 
+pytestmark = pytest.mark.xdist_group("deploy_cli")  # one worker builds the module's fixtures once
+
 # -- bad input on the command line -------------------------------------------------------------
 
 
