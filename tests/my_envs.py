@@ -125,3 +125,37 @@ class TwoStepEnv(gym.Env[np.ndarray, int]):
 
     def _obs(self) -> np.ndarray:
         return np.array([self.steps / 2, 0.5], dtype=np.float32)
+
+
+class PickEnv(gym.Env[np.ndarray, np.ndarray]):
+    """Pick the shown pair: the observation one-hot codes a target pair ``(i, j)``, ``i`` in
+    ``1..2`` and ``j`` in ``0..2``; the action is ``MultiDiscrete([2, 3], start=[1, 0])`` and
+    earns 1 for each component equal to the target's. Ten steps an episode (a new target each
+    step). Every action reaching :meth:`step` is checked to lie in the space (the test of
+    snnkart's joint-action wrapper)."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": [], "render_fps": 10}
+
+    def __init__(self, nvec: tuple[int, ...] = (2, 3)) -> None:
+        self.observation_space = spaces.Box(0.0, 1.0, (5,), np.float32)
+        self.action_space = spaces.MultiDiscrete(list(nvec), start=[1] + [0] * (len(nvec) - 1))
+        self.steps = 0
+        self.target = np.array([1, 0])
+
+    def reset(self, *, seed: int | None = None, options: Any = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.steps = 0
+        return self._draw(), {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        assert self.action_space.contains(action), action
+        reward = float(np.sum(np.asarray(action) == self.target))
+        self.steps += 1
+        return self._draw(), reward, False, self.steps >= 10, {}
+
+    def _draw(self) -> np.ndarray:
+        self.target = np.array([1 + self.np_random.integers(2), self.np_random.integers(3)])
+        obs = np.zeros(5, np.float32)
+        obs[self.target[0] - 1] = 1.0
+        obs[2 + self.target[1]] = 1.0
+        return obs

@@ -1,8 +1,9 @@
 """Any gymnasium env end to end (issue 45's acceptance): a tiny run trained, evaluated from its
 checkpoint, exported to NIR, read back, and deployed on Lava's simulated Loihi in fixed point
 with 0 mismatched env steps against the reference: CartPole-v1 (Discrete actions), Pendulum-v1
-(Box actions, a sigma-delta policy) and an env of the tests' own by entry point (Dict
-observations, Box actions). Then the refusals: another env's spaces, and a kart-only flag."""
+(Box actions, a sigma-delta policy), an env of the tests' own by entry point (Dict
+observations, Box actions) and one with MultiDiscrete actions (one categorical over the joint
+actions). Then the refusals: another env's spaces, and a kart-only flag."""
 
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ def _trained(tmp_path: Path, env: str, policy: str) -> Path:
 @pytest.mark.parametrize(
     ("env", "policy", "action_mode", "threshold"),
     [("CartPole-v1", "snn", "discrete", 475.0), ("Pendulum-v1", "sdnn", "continuous", None),
-     ("my_envs:MyDictEnv", "snn", "continuous", None)],
+     ("my_envs:MyDictEnv", "snn", "continuous", None), ("my_envs:PickEnv", "snn", "discrete", None)],
 )  # fmt: skip
 def test_train_eval_export_deploy_fixed_bit_exact(
     env: str, policy: str, action_mode: str, threshold: float | None, tmp_path: Path

@@ -201,6 +201,6 @@ def test_other_action_spaces_are_refused_in_words(space: spaces.Space) -> None:
         ActionAdapter.of(space)
     assert str(caught.value) == (
         f"action space {space} is not supported; snnkart's policies take Discrete (categorical), "
-        "MultiDiscrete (one categorical per component) and Box (Gaussian) actions "
+        "MultiDiscrete (one categorical over the joint actions) and Box (Gaussian) actions "
         "(map yours to one in a wrapper of your own)"
     )

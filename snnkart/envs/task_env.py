@@ -11,8 +11,9 @@ by gymnasium and given the wrappers a policy needs, each recorded by name in its
 - actions: ``Discrete`` (from 0) passes; a ``Box`` with finite bounds other than [-1, 1] is
   rescaled from [-1, 1] by gymnasium's ``RescaleAction``, so the policy's actions are clipped
   to [-1, 1] (the deployment contract's) and reach the env clipped to its own bounds, as
-  Stable-Baselines3 clips them. ``MultiDiscrete`` and ``Discrete`` with a non-zero start are
-  refused in words (the policies have one categorical head over actions from 0).
+  Stable-Baselines3 clips them. ``MultiDiscrete`` (up to :data:`MAX_JOINT_ACTIONS` joint
+  actions) and ``Discrete`` with a non-zero start become one ``Discrete`` from 0 by
+  :class:`JointDiscrete`: the policy's categorical head is over the joint actions.
 
 Image observations and unsupported spaces are refused by :mod:`snnkart.envs.spaces`.
 """
@@ -55,23 +56,57 @@ def make_gym_env(
     if env.observation_space.dtype != np.float32:
         env = DtypeObservation(env, np.float32)
     act = env.action_space
+    if isinstance(act, spaces.MultiDiscrete) or (
+        isinstance(act, spaces.Discrete) and int(act.start) != 0
+    ):
+        env = JointDiscrete(env)
     if isinstance(act, spaces.Box) and _needs_rescale(act):
         env = RescaleAction(env, np.float32(-1.0), np.float32(1.0))
     return env
 
 
+MAX_JOINT_ACTIONS = 256
+"""The most joint actions a MultiDiscrete space may have: the policy's one categorical head has
+one output per joint action (its readout layer's width)."""
+
+
+class JointDiscrete(gym.ActionWrapper):  # type: ignore[type-arg]
+    """A ``MultiDiscrete`` (or a ``Discrete`` not starting at 0) as one ``Discrete`` space from
+    0: joint action ``a`` is the components' index in C order (``numpy.unravel_index`` over
+    ``nvec``), each component offset by its ``start``. The policy's categorical head is then
+    over the joint actions (not factorised per component, as Stable-Baselines3's
+    ``MultiCategorical`` is): exact, and every backend runs it as a Discrete policy."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        space = env.action_space
+        if isinstance(space, spaces.Discrete):
+            self.nvec, self.start, self.multi = (
+                np.array([int(space.n)]),
+                np.array([int(space.start)]),
+                False,
+            )
+        else:
+            assert isinstance(space, spaces.MultiDiscrete)
+            self.nvec, self.start, self.multi = space.nvec.ravel(), space.start.ravel(), True
+        self.shape, self.dtype = space.shape, space.dtype
+        self.action_space = spaces.Discrete(int(np.prod(self.nvec)))
+
+    def action(self, action: Any) -> Any:
+        parts = np.array(np.unravel_index(int(action), tuple(self.nvec))) + self.start
+        if not self.multi:
+            return np.int64(parts[0])
+        return parts.reshape(self.shape).astype(self.dtype)
+
+
 def _check_actions(name: str, space: spaces.Space[Any], actions: ActionAdapter) -> None:
-    """The action spaces the policies' heads cannot take yet, refused in words."""
+    """The action spaces the policies' heads cannot take, refused in words."""
     words = space_words(actions.describe())
-    if isinstance(space, spaces.MultiDiscrete):
+    if isinstance(space, spaces.MultiDiscrete) and int(np.prod(space.nvec)) > MAX_JOINT_ACTIONS:
         raise EnvError(
-            f"env {name!r} has MultiDiscrete actions ({words}); snnkart's policies take "
-            "Discrete and Box actions: wrap the env to one Discrete action space"
-        )
-    if isinstance(space, spaces.Discrete) and int(space.start) != 0:
-        raise EnvError(
-            f"env {name!r} has Discrete actions starting at {int(space.start)}; snnkart's "
-            "policies act from 0: wrap the env so that its actions start at 0"
+            f"env {name!r} has MultiDiscrete actions ({words}): {int(np.prod(space.nvec))} "
+            f"joint actions, more than the {MAX_JOINT_ACTIONS} snnkart's categorical head takes; "
+            "wrap the env to fewer actions"
         )
     if isinstance(space, spaces.Box) and len(space.shape) != 1:
         raise EnvError(
