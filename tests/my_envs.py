@@ -92,6 +92,13 @@ class MyDictEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
 if ENV_ID not in gym.registry:
     gym.register(id=ENV_ID, entry_point=f"{__name__}:MyDictEnv", max_episode_steps=MAX_STEPS)
+if "CartPole20-v0" not in gym.registry:  # CartPole with a pass mark a tiny run can reach
+    gym.register(
+        id="CartPole20-v0",
+        entry_point="gymnasium.envs.classic_control.cartpole:CartPoleEnv",
+        max_episode_steps=500,
+        reward_threshold=20.0,
+    )
 
 
 class TwoStepEnv(gym.Env[np.ndarray, int]):

@@ -129,6 +129,32 @@ def test_the_energy_report_prices_a_gymnasium_deployment_at_the_envs_rate(
     assert again["control"]["period_s"] == 0.2 and again["control"]["from"] == "--control-hz 5"
 
 
+@pytest.mark.timeout(600)
+def test_report_ann_drives_the_users_ann_run_on_the_deployments_episodes(tmp_path: Path) -> None:
+    """--ann on a gymnasium deployment: the ANN run (float and int8) driven on the deployment's
+    episodes, its success the share of episodes reaching the env's reward_threshold (20 here);
+    an ANN run of another env is refused."""
+    from snnkart.app.report import build_report
+    from snnkart.errors import ReportError
+
+    env = "my_envs:CartPole20-v0"
+    snn_dir, ann_dir = (
+        _trained(tmp_path / "snn", env, "snn"),
+        _trained(tmp_path / "ann", env, "ann"),
+    )
+    nir_file, _ = export_nir(load_run(snn_dir), tmp_path / "policy.nir")
+    run_deploy(DeployRequest(nir_file, "nir-ref", "fixed", 6, 40, out=tmp_path / "deploy"))
+    report = build_report(tmp_path / "deploy", ann_dir, None)
+    task = report["ann"]["run"]["task"]  # type: ignore[index]
+    by_hand = run_eval(ann_dir, 6, 40, None, False, None, None, Silent())
+    share = sum(e.episode_return >= 20.0 for e in by_hand.episodes) / 6
+    assert task["success_rate"] == share and task["mean_return"] == by_hand.summary.mean_return
+    assert task["int8"]["success_rate"] is not None and task["int8"]["episodes"] == 6
+    other = _trained(tmp_path / "other", "CartPole-v1", "ann")
+    with pytest.raises(ReportError, match="compare policies of the same env"):
+        build_report(tmp_path / "deploy", other, None)
+
+
 @pytest.mark.timeout(300)
 def test_the_report_of_an_env_without_a_rate_asks_for_one(tmp_path: Path) -> None:
     from snnkart.app.report import control_period

@@ -64,9 +64,10 @@ def test_the_pool_list_runs_as_tune_trials(tmp_path: Path) -> None:
 
 @pytest.mark.timeout(400)
 def test_sweep_stops_weak_trials_early(tmp_path: Path) -> None:
+    """On a gymnasium env (CartPole-v1): trials scored by their mean episodic return."""
     sets = [arg for kv in TINY for arg in ("--set", kv)]
     result = subprocess.run(
-        [sys.executable, "-m", "snnkart.cli", "sweep", "--param",
+        [sys.executable, "-m", "snnkart.cli", "sweep", "--env", "CartPole-v1", "--param",
          "ppo.learning_rate=uniform:0:3e-3", "--point", "ppo.learning_rate=0", "--samples", "4",
          "--grace", "1", "--steps", str(6 * BATCH), "--cpus", "2", "--out", str(tmp_path), *sets],
         cwd=ROOT, capture_output=True, text=True, timeout=380,

@@ -210,6 +210,9 @@ def test_bad_study_configs_name_the_problem(tmp_path: Path) -> None:
         plan(load_study(bad))
     with pytest.raises(UsageError, match="cannot read the study config"):
         load_study(tmp_path / "missing.toml")
+    bad.write_text('schema = "snnkart/study-config/v1"\ndata = "tuning"\nenvs = ["CartPole-v1"]\n')
+    with pytest.raises(UsageError, match=r"'CartPole-v1' is not a kart env.*a zoo study config"):
+        load_study(bad)
 
 
 def test_only_takes_a_cell_with_all_its_variants_or_one_variant() -> None:

@@ -126,6 +126,30 @@ def test_a_zoo_studys_spiking_seed_deploys_bit_exact_on_lava(tmp_path: Path) -> 
     assert f"{e.ratio.median:.3g}x" in (tmp_path / "out/zoo-study.md").read_text()
 
 
+@pytest.mark.timeout(600)
+def test_a_study_of_a_users_own_env_on_snnkarts_settings(tmp_path: Path) -> None:
+    """An env the zoo has no entry for (the suite's PickEnv, by entry point, MultiDiscrete
+    actions) studied with snnkart's defaults; SB3 is refused there (not like for like)."""
+    text = (
+        CONFIG.replace('"CartPole-v1"', '"my_envs:PickEnv"')
+        .replace('["ann", "sb3"]', '["ann", "snn"]')
+        .replace("[1, 2]", "[1]")
+        .replace("deploy_episodes = 1", 'deploy_episodes = 1\nsettings = "snnkart"')
+    )
+    (tmp_path / "own.toml").write_text(text)
+    cfg = load_zoo_config(tmp_path / "own.toml")
+    assert cfg is not None
+    record = run_zoo_study(cfg, tmp_path / "out", Silent())
+    assert [r.policy for r in record.runs] == ["ann", "snn"] and record.unexpressible == []
+    assert record.zoo["key"] == "snnkart's defaults" and 0 < record.random_return < 20
+    (deployed,) = record.deployed
+    assert deployed.mismatched_windows == 0 and deployed.energy is not None
+    assert "PPO settings: snnkart's defaults" in (tmp_path / "out/zoo-study.md").read_text()
+    (tmp_path / "sb3.toml").write_text(text.replace('["ann", "snn"]', '["ann", "sb3"]'))
+    with pytest.raises(ConfigError, match='drop "sb3"'):
+        load_zoo_config(tmp_path / "sb3.toml")
+
+
 def test_the_published_cartpole_study_solves_on_every_seed_and_deploys_bit_exact() -> None:
     """docs/zoo.md's CartPole-v1 claim: every kind (and SB3) reaches gymnasium's threshold on
     every reporting seed, and each spiking kind's deployed seed is bit-exact on Lava."""

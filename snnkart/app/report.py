@@ -18,6 +18,7 @@ from snnkart.app.report_sweep import sweep_section
 from snnkart.app.reporter import Reporter
 from snnkart.app.sanafe_report import sanafe_section
 from snnkart.contract.deploy_record import DeployRecord
+from snnkart.contract.eval_record import task_success as success_of
 from snnkart.contract.records import RecordError
 from snnkart.contract.report_record import (
     AnnRunTask,
@@ -100,12 +101,13 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, AnnRunTask
             f"--ann {ann_dir} is a {run.config.env} run, the deployment drove {env.env}; "
             "compare policies of the same env"
         )
-    trained = run.track_record()
-    if trained["sha256"] != env.track_sha256:
-        raise ReportError(
-            f"--ann {ann_dir} was trained on track {trained['name']}, the deployment drove "
-            f"{env.track}; compare on the same track"
-        )
+    if env.track is not None:
+        trained = run.track_record()
+        if trained["sha256"] != env.track_sha256:
+            raise ReportError(
+                f"--ann {ann_dir} was trained on track {trained['name']}, the deployment drove "
+                f"{env.track}; compare on the same track"
+            )
     from snnkart.eval.ann_int8 import int8_task
 
     gym_env = run.config.make_env(track=run.track)
@@ -116,6 +118,7 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, AnnRunTask
         )
     finally:
         gym_env.close()
+    threshold = record.summary.reward_threshold
     summary = EvalSummary.of(results)
     steps = sum(r.length for r in results)
     task: AnnRunTask = {
@@ -123,12 +126,16 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, AnnRunTask
         "global_step": run.meta.get("global_step"),
         "episodes": episodes,
         "first_seed": record.first_seed,
-        "success_rate": summary.laps,
+        "success_rate": success_of(results, threshold),
         "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return,
         "steps_per_episode": steps / episodes,
         "int8": int8_task(
-            run, lambda: run.config.make_env(track=run.track), record.first_seed, episodes
+            run,
+            lambda: run.config.make_env(track=run.track),
+            record.first_seed,
+            episodes,
+            reward_threshold=threshold,
         ),
     }
     return AnnCounts(widths, run.config.action_mode, "ANN run"), task
@@ -242,11 +249,6 @@ def _deployment(
     """The deploy record, its control section, and its task's success rate and whether that
     passes (:data:`DRIVES`; None: nothing to judge); ``--ann`` refused for a gymnasium env."""
     record = read_deploy(deploy_dir)
-    if record.env.track is None and ann_dir is not None:
-        raise ReportError(
-            "--ann: an ANN run is driven on kart deployments only for now; a gymnasium "
-            "deployment is compared with the ANN of its own widths (run without --ann)"
-        )
     period, period_from = control_period(record, control_hz)
     success, pass_mark = task_success(record)
     control: Control = {"period_s": period, "from": period_from, "pass_mark": pass_mark}
@@ -262,8 +264,9 @@ def task_success(record: DeployRecord) -> tuple[float | None, str]:
         return s.laps, "finished laps"
     if s.reward_threshold is None or not record.episodes:
         return None, f"none: {record.env.env} has no reward_threshold"
-    reached = [e.episode_return >= s.reward_threshold for e in record.episodes]
-    return sum(reached) / len(reached), f"return >= the env's {s.reward_threshold:g}"
+    return success_of(record.episodes, s.reward_threshold), (
+        f"return >= the env's {s.reward_threshold:g}"
+    )
 
 
 def build_report(

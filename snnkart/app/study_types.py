@@ -59,6 +59,22 @@ class StudyConfig(BaseModel):
         "a name 'POLICY:NAME' applies to that policy kind's cells only",
     )
 
+    @field_validator("envs")
+    @classmethod
+    def _kart_envs(cls, envs: list[str]) -> list[str]:
+        from snnkart.envs.resolve import resolve_env
+
+        for name in envs:
+            if not resolve_env(name).kart:
+                raise ValueError(
+                    f"{name!r} is not a kart env: this study is track x env x policy on the kart "
+                    f"envs (finished laps); a study of a gymnasium env is a zoo study config "
+                    f'(schema = "snnkart/zoo-study-config/v1", env = "{name}", settings = '
+                    '"snnkart" for snnkart\'s defaults or "zoo" for the RL Zoo\'s tuned settings; '
+                    "see studies/zoo/)"
+                )
+        return envs
+
     @field_validator("policies")
     @classmethod
     def _known_policies(cls, policies: list[str]) -> list[str]:

@@ -43,6 +43,14 @@ from snnkart.rl import kinds
 CONFIG_SCHEMA = "snnkart/zoo-study-config/v1"
 SNNKART_KINDS = ("ann", "snn", "sdnn")
 POLICIES = (*SNNKART_KINDS, "sb3")
+SETTINGS = ("zoo", "snnkart")
+SNNKART_DEFAULTS = {
+    "key": "snnkart's defaults",
+    "source": "snnkart.rl.config (the study's sets on top)",
+    "note": None,
+}
+"""A study on snnkart's own settings, as its record names them (where a zoo study names the
+zoo's entry)."""
 
 
 @dataclass(frozen=True)
@@ -61,6 +69,7 @@ class ZooStudyConfig:
     sets: tuple[str, ...] = ()
     zoo_score: str | None = None  # the zoo's published score, context only
     zoo_score_source: str | None = None
+    settings: str = "zoo"  # "zoo": the RL Zoo's tuned PPO settings; "snnkart": snnkart's defaults
 
     @classmethod
     def read(cls, path: Path) -> ZooStudyConfig:
@@ -82,13 +91,27 @@ class ZooStudyConfig:
             raise ConfigError(f"{path}: policies are {', '.join(POLICIES)}; data reporting|tuning")
         if cfg.data == "reporting" and min(cfg.seeds) < 101:
             raise ConfigError(f"{path}: reporting data trains on seeds 101 and up")
+        if cfg.settings not in SETTINGS:
+            raise ConfigError(f"{path}: settings is one of {', '.join(SETTINGS)}")
+        if cfg.settings == "snnkart" and cfg.steps is None:
+            raise ConfigError(f'{path}: settings = "snnkart" needs steps (the zoo has no budget)')
+        if cfg.settings == "snnkart" and "sb3" in cfg.policies:
+            raise ConfigError(
+                f"{path}: settings = \"snnkart\" trains snnkart's kinds with snnkart's defaults, "
+                'which Stable-Baselines3 would not share: drop "sb3", or use settings = "zoo" '
+                "(the RL Zoo's settings for both, where the zoo has an entry for the env)"
+            )
         return cfg
 
 
 def _snnkart_sets(cfg: ZooStudyConfig, policy: str, seed: int, steps: int) -> list[str]:
     from snnkart.rl.zoo import as_overrides, to_snnkart, zoo_settings
 
-    sets = [s for s in as_overrides(to_snnkart(zoo_settings(cfg.env))) if "total_steps" not in s]
+    if cfg.settings == "snnkart":
+        sets = [f"env={json.dumps(cfg.env)}"]
+    else:
+        zoo = as_overrides(to_snnkart(zoo_settings(cfg.env)))
+        sets = [s for s in zoo if "total_steps" not in s]
     hidden = next((s.split("=", 1)[1] for s in sets if s.startswith("ann.hidden=")), None)
     if hidden is not None:  # a LIF actor as wide as the ANN's (kinds without one ignore it)
         sets.append(f"snn.hidden={hidden}")
@@ -178,11 +201,10 @@ def random_return(cfg: ZooStudyConfig) -> float:
 def _episodes_on_task(cfg: ZooStudyConfig, predictor_for: Any) -> tuple[list[Any], float | None]:
     """The study's evaluation episodes of ``predictor_for(env)`` on the env gymnasium makes
     (as SB3 trained on it, no snnkart wrappers), and the env's reward threshold."""
-    import gymnasium as gym
-
+    from snnkart.envs.resolve import resolve_env
     from snnkart.eval.episodes import run_episodes
 
-    env = gym.make(cfg.env)
+    env = resolve_env(cfg.env).make({})
     try:
         results = run_episodes(env, predictor_for(env), cfg.eval_episodes, cfg.eval_seed)
         return results, env.spec.reward_threshold if env.spec is not None else None
@@ -230,8 +252,11 @@ def run_zoo_study(cfg: ZooStudyConfig, out: Path, reporter: Reporter) -> ZooStud
     from snnkart.rl.zoo import to_snnkart, zoo_settings
     from snnkart.rl.zoo_baseline import describe
 
-    settings = zoo_settings(cfg.env)
-    steps = cfg.steps or int(float(settings.values["n_timesteps"]))  # type: ignore[arg-type]
+    settings = zoo_settings(cfg.env) if cfg.settings == "zoo" else None
+    if settings is None:
+        steps = int(cfg.steps or 0)
+    else:
+        steps = cfg.steps or int(float(settings.values["n_timesteps"]))  # type: ignore[arg-type]
     runs = [
         _run(cfg, settings, policy, seed, steps, out, reporter)
         for policy in cfg.policies
@@ -252,8 +277,8 @@ def run_zoo_study(cfg: ZooStudyConfig, out: Path, reporter: Reporter) -> ZooStud
         steps=steps,
         eval_episodes=cfg.eval_episodes,
         eval_seed=cfg.eval_seed,
-        zoo=dict(describe(settings)),
-        unexpressible=list(to_snnkart(settings).unexpressible),
+        zoo=dict(describe(settings)) if settings is not None else dict(SNNKART_DEFAULTS),
+        unexpressible=[] if settings is None else list(to_snnkart(settings).unexpressible),
         reward_threshold=threshold,
         random_return=floor,
         runs=runs,

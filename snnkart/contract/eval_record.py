@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import statistics
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -103,6 +104,17 @@ class EvalSummary:
             reward_threshold=reward_threshold,
             solved=None if reward_threshold is None else bool(mean >= reward_threshold),
         )
+
+
+def task_success(results: Sequence[EpisodeResult], reward_threshold: float | None) -> float | None:
+    """The share of ``results`` that did the task: a kart env's finished laps; a gymnasium
+    env's episodes whose return reaches ``reward_threshold`` (None without one: nothing
+    judges the task)."""
+    if any(r.finished is not None for r in results):
+        return sum(bool(r.finished) for r in results) / len(results)
+    if reward_threshold is None or not results:
+        return None
+    return sum(r.episode_return >= reward_threshold for r in results) / len(results)
 
 
 _KART_ONLY = "{} is a kart env's measure; this evaluation ran on a gymnasium env (use its returns)"

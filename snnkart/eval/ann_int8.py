@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from snnkart.contract.eval_record import task_success
 from snnkart.contract.report_record import AnnRunTask, Int8Task, Task
 from snnkart.eval.episodes import EvalSummary, run_episodes
 from snnkart.rl.int8 import Int8Mlp, actor_activation, actor_params, quantise_mlp
@@ -110,6 +111,7 @@ def int8_task(
     first_seed: int,
     episodes: int,
     calibration_episodes: int = CALIBRATION_EPISODES,
+    reward_threshold: float | None = None,
 ) -> Int8Task:
     """Quantise the run's actor and drive the episodes ``first_seed, ...``: the int8 ANN's
     task record (the report's ``ann.run.task.int8``)."""
@@ -127,7 +129,7 @@ def int8_task(
         env.close()
     summary = EvalSummary.of(results)
     return {
-        "success_rate": summary.laps,
+        "success_rate": task_success(results, reward_threshold),
         "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return,
         "episodes": episodes,

@@ -26,8 +26,10 @@ def zoo_markdown(records: list[Any]) -> str:
         head = (
             f"### {r.env}\n\n{r.name}: {r.data} data, seeds {seeds[0]}-{seeds[-1]} "
             f"({len(seeds)}), {r.steps:,} env steps each, scored on {r.eval_episodes} episodes "
-            f"(seeds {r.eval_seed}+, deterministic) at commit {r.commit}. RL Zoo settings: `{r.zoo['key']}`"
+            f"(seeds {r.eval_seed}+, deterministic) at commit {r.commit}. "
         )
+        own = str(r.zoo.get("source", "")).startswith("snnkart.rl.config")
+        head += f"PPO settings: {r.zoo['key']}" if own else f"RL Zoo settings: `{r.zoo['key']}`"
         if r.zoo.get("note"):
             head += f" ({r.zoo['note']})"
         head += f". Random policy: {r.random_return:.1f}."
