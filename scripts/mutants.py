@@ -38,6 +38,9 @@ The script exits 1 if any mutant survived, 2 if none survived but one could not 
 - ``shared-price-independent``: the joint uncertainty draws a price the SNN's host and the ANN
   share (SRAM reads, digital add/mult/MAC of one technology) independently on each side
   (``snnkart.energy.uncertainty.quantity``); guarded by ``tests/test_uncertainty.py``.
+- ``zoo-energy-wide-ann``: the "same widths" ANN a deployment is priced against has twice its
+  hidden widths (the width mismatch issue 46 names); guarded by the zoo study's deployed-seed
+  test in ``tests/test_zoo_study.py``.
 - ``memory-row-8kb``: every side's weights are priced as reads of an 8 KB SRAM whatever their
   footprint (``snnkart.energy.pricing.memory_row``; the choice that flipped the old verdict);
   guarded by ``tests/test_energy_terms.py``.
@@ -81,6 +84,7 @@ MUTANTS = {
     "stateful-reference-resets": ["tests/test_stateful.py", "-k", "numpy_references_carry"],
     "bc-wrong-rows": ["tests/test_bc.py", "-k", "own_rows"],
     "reporting-set-unchecked": ["tests/test_study_protocol.py", "-k", "moves"],
+    "zoo-energy-wide-ann": ["tests/test_zoo_study.py", "-k", "deploys_bit_exact"],
 }
 
 
@@ -233,6 +237,19 @@ def apply(name: str) -> None:
         snnkart.app.study_run.data_problem = lambda kind, seeds, tracks: (  # type: ignore[assignment]
             real_problem(kind, seeds, tracks) if kind == "tuning" else None
         )
+    elif name == "zoo-energy-wide-ann":
+        import dataclasses
+
+        import snnkart.app.report
+
+        real_width = snnkart.app.report.same_width
+
+        def wide(snn):  # type: ignore[no-untyped-def]
+            ann = real_width(snn)
+            widths = (ann.widths[0], *(2 * w for w in ann.widths[1:-1]), ann.widths[-1])
+            return dataclasses.replace(ann, widths=widths)
+
+        snnkart.app.report.same_width = wide  # type: ignore[assignment]
     else:
         raise SystemExit(f"unknown mutant {name!r}; choose from {', '.join(MUTANTS)}")
 

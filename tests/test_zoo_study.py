@@ -120,7 +120,9 @@ def test_a_zoo_studys_spiking_seed_deploys_bit_exact_on_lava(tmp_path: Path) -> 
         for c in report["comparisons"]  # type: ignore[attr-defined]
         if (c["snn_profile"], c["ann"], c["ann_profile"]) == (e.chip, "same_width", e.baseline)
     ]
-    assert report["ann"]["same_width"]["label"] == e.ann  # type: ignore[index]
+    assert report["ann"]["same_width"]["label"] == e.ann == "ANN 64-64 (same widths)"  # type: ignore[index]
+    macs = sum(t["count"] for t in row["ann_terms"] if t["op"] == "mac")
+    assert macs == 4 * 64 + 64 * 64 + 64 * 2  # CartPole's 4 inputs, the zoo's 64-64, 2 actions
     assert row["uncertainty"]["ratio"]["median"] == pytest.approx(e.ratio.median)
     assert row["uncertainty"]["ann_pj"]["p95"] == pytest.approx(e.ann_pj.p95)
     assert f"{e.ratio.median:.3g}x" in (tmp_path / "out/zoo-study.md").read_text()
