@@ -18,7 +18,7 @@ from snnkart.app.report_sweep import sweep_section
 from snnkart.app.reporter import Reporter
 from snnkart.app.sanafe_report import sanafe_section
 from snnkart.contract.deploy_record import DeployRecord
-from snnkart.contract.eval_record import task_success as success_of
+from snnkart.contract.eval_record import success_share
 from snnkart.contract.records import RecordError
 from snnkart.contract.report_record import (
     AnnRunTask,
@@ -126,7 +126,7 @@ def _ann_run(ann_dir: Path, record: DeployRecord) -> tuple[AnnCounts, AnnRunTask
         "global_step": run.meta.get("global_step"),
         "episodes": episodes,
         "first_seed": record.first_seed,
-        "success_rate": success_of(results, threshold),
+        "success_rate": success_share(results, threshold),
         "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return,
         "steps_per_episode": steps / episodes,
@@ -207,12 +207,11 @@ def same_width(snn: SnnCounts) -> AnnCounts:
 
 
 def priced_deployment(
-    deploy_dir: Path, chip: str = goal.PRIMARY, baseline: str = goal.INT8
+    record: DeployRecord, chip: str = goal.PRIMARY, baseline: str = goal.INT8
 ) -> tuple[goal.Priced, AnnCounts]:
     """The deployment (a policy of any family) on ``chip`` against the ANN of its own widths on
     ``baseline``, at the deployment's control rate (the pair :func:`goal.check` samples), and
     that ANN."""
-    record = read_deploy(deploy_dir)
     period, _ = control_period(record, None)
     policy: SnnCounts | SigmaDeltaCounts
     if record.counts.sigma_delta is not None:
@@ -262,11 +261,10 @@ def task_success(record: DeployRecord) -> tuple[float | None, str]:
     s = record.summary
     if record.env.track is not None:
         return s.laps, "finished laps"
-    if s.reward_threshold is None or not record.episodes:
+    share = success_share(record.episodes, s.reward_threshold)
+    if share is None:
         return None, f"none: {record.env.env} has no reward_threshold"
-    return success_of(record.episodes, s.reward_threshold), (
-        f"return >= the env's {s.reward_threshold:g}"
-    )
+    return share, f"return >= the env's {s.reward_threshold:g}"
 
 
 def build_report(

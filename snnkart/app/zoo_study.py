@@ -27,9 +27,11 @@ except ModuleNotFoundError:  # Python 3.10
 
 from snnkart.app.provenance import git_commit
 from snnkart.app.reporter import Reporter, Silent
+from snnkart.contract.deploy_record import DeployRecord
 from snnkart.contract.eval_record import EvalRecord, EvalSummary
 from snnkart.errors import ConfigError
 from snnkart.report.zoo_record import (
+    SNNKART_DEFAULTS,
     ZOO_STUDY,
     Sampled,
     ZooDeploy,
@@ -44,13 +46,6 @@ CONFIG_SCHEMA = "snnkart/zoo-study-config/v1"
 SNNKART_KINDS = ("ann", "snn", "sdnn")
 POLICIES = (*SNNKART_KINDS, "sb3")
 SETTINGS = ("zoo", "snnkart")
-SNNKART_DEFAULTS = {
-    "key": "snnkart's defaults",
-    "source": "snnkart.rl.config (the study's sets on top)",
-    "note": None,
-}
-"""A study on snnkart's own settings, as its record names them (where a zoo study names the
-zoo's entry)."""
 
 
 @dataclass(frozen=True)
@@ -312,8 +307,6 @@ def _deployed(
     cfg: ZooStudyConfig, policy: str, seed: int, run_dir: Path, reporter: Reporter
 ) -> ZooDeploy:
     """The run exported and deployed on lava-sim fixed (reused when newer than its checkpoint)."""
-    from snnkart.contract.deploy_record import DeployRecord
-
     out = run_dir / "zoo-deploy-lava-sim-fixed"
     record_file = out / "deploy.json"
     if not (
@@ -347,16 +340,16 @@ def _deployed(
         float32_identical_action_fraction=p.float32_identical_action_fraction,
         synops_per_env_step=synops / max(c.env_steps, 1),
         ms_per_env_step=r.timing.ms_per_env_step,
-        energy=_energy(out),
+        energy=_energy(r),
     )
 
 
-def _energy(deploy_dir: Path) -> ZooEnergy:
+def _energy(record: DeployRecord) -> ZooEnergy:
     """The deployment's energy per decision on Loihi 2 against the int8 ANN of its widths."""
     from snnkart.app.report import priced_deployment
     from snnkart.energy import goal
 
-    p, ann = priced_deployment(deploy_dir)
+    p, ann = priced_deployment(record)
     c = goal.check(p, 1.0)
     return ZooEnergy(
         chip=p.chip,

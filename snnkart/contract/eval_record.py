@@ -106,7 +106,7 @@ class EvalSummary:
         )
 
 
-def task_success(results: Sequence[EpisodeResult], reward_threshold: float | None) -> float | None:
+def success_share(results: Sequence[EpisodeResult], reward_threshold: float | None) -> float | None:
     """The share of ``results`` that did the task: a kart env's finished laps; a gymnasium
     env's episodes whose return reaches ``reward_threshold`` (None without one: nothing
     judges the task)."""

@@ -42,7 +42,10 @@ from snnkart.errors import EnvError
 OBS_SUPPORTED = "Box, Discrete, MultiBinary, MultiDiscrete and Dict/Tuple of these"
 """The observation spaces an :class:`ObsAdapter` takes, as its errors name them."""
 
-ACTIONS_SUPPORTED = "Discrete (categorical), MultiDiscrete (one categorical over the joint actions) and Box (Gaussian)"
+ACTIONS_SUPPORTED = (
+    "Discrete (categorical), MultiDiscrete (one categorical over the joint actions) "
+    "and Box (Gaussian)"
+)
 """The action spaces an :class:`ActionAdapter` takes, as its errors name them."""
 
 IMAGE_MIN_SIDE = 8

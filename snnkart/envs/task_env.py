@@ -80,15 +80,11 @@ class JointDiscrete(gym.ActionWrapper):  # type: ignore[type-arg]
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
         space = env.action_space
-        if isinstance(space, spaces.Discrete):
-            self.nvec, self.start, self.multi = (
-                np.array([int(space.n)]),
-                np.array([int(space.start)]),
-                False,
-            )
-        else:
-            assert isinstance(space, spaces.MultiDiscrete)
-            self.nvec, self.start, self.multi = space.nvec.ravel(), space.start.ravel(), True
+        assert isinstance(space, (spaces.Discrete, spaces.MultiDiscrete))
+        self.multi = isinstance(space, spaces.MultiDiscrete)
+        nvec = space.nvec if isinstance(space, spaces.MultiDiscrete) else space.n
+        self.nvec = np.atleast_1d(nvec).ravel()
+        self.start = np.atleast_1d(space.start).ravel()
         self.shape, self.dtype = space.shape, space.dtype
         self.action_space = spaces.Discrete(int(np.prod(self.nvec)))
 

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from snnkart.contract.eval_record import task_success
+from snnkart.contract.eval_record import success_share
 from snnkart.contract.report_record import AnnRunTask, Int8Task, Task
 from snnkart.eval.episodes import EvalSummary, run_episodes
 from snnkart.rl.int8 import Int8Mlp, actor_activation, actor_params, quantise_mlp
@@ -129,7 +129,7 @@ def int8_task(
         env.close()
     summary = EvalSummary.of(results)
     return {
-        "success_rate": task_success(results, reward_threshold),
+        "success_rate": success_share(results, reward_threshold),
         "mean_lap_time": summary.mean_lap_time,
         "mean_return": summary.mean_return,
         "episodes": episodes,

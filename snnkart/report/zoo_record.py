@@ -14,6 +14,13 @@ from snnkart.contract.records import OMIT_NONE, Record, RecordKind
 
 ZOO_STUDY = RecordKind("zoo-study", 2, rerun="snnkart study")
 """v2: a deployed seed's ``energy`` (a v1 file loads without it)."""
+SNNKART_DEFAULTS: dict[str, str | None] = {
+    "key": "snnkart's defaults",
+    "source": "snnkart.rl.config (the study's sets on top)",
+    "note": None,
+}
+"""The ``zoo`` entry of a study on snnkart's own settings (``settings = "snnkart"``), where a
+zoo study names the zoo's entry."""
 BOOTSTRAP = 2000
 """Resamples of the runs for the IQM's interval."""
 

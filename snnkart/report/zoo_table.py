@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from snnkart.report.zoo_record import SNNKART_DEFAULTS
+
 LABELS = {
     "ann": "snnkart ANN",
     "snn": "snnkart SNN (LIF)",
@@ -28,7 +30,7 @@ def zoo_markdown(records: list[Any]) -> str:
             f"({len(seeds)}), {r.steps:,} env steps each, scored on {r.eval_episodes} episodes "
             f"(seeds {r.eval_seed}+, deterministic) at commit {r.commit}. "
         )
-        own = str(r.zoo.get("source", "")).startswith("snnkart.rl.config")
+        own = r.zoo == SNNKART_DEFAULTS
         head += f"PPO settings: {r.zoo['key']}" if own else f"RL Zoo settings: `{r.zoo['key']}`"
         if r.zoo.get("note"):
             head += f" ({r.zoo['note']})"
