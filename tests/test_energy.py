@@ -325,7 +325,7 @@ def _cli(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str]:
                           timeout=timeout)  # fmt: skip
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # built once per worker, whatever runs between its tests
 def deployed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The committed grid SNN, exported and deployed on the reference in fixed point."""
     tmp = tmp_path_factory.mktemp("deployed")
@@ -336,7 +336,7 @@ def deployed(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp / "deploy"
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # built once per worker, whatever runs between its tests
 def ann_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A short grid ANN run on small_S (the fixture's env and track)."""
     run = tmp_path_factory.mktemp("ann") / "run"
@@ -346,7 +346,7 @@ def ann_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return run
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # built once per worker, whatever runs between its tests
 def report(deployed: Path, ann_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("report")
     sweep = tmp_path_factory.mktemp("sweep") / "sweep.json"  # not in --out: not the report's

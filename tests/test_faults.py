@@ -47,7 +47,7 @@ SUBPROCESS_ENV = {**os.environ, "SDL_VIDEODRIVER": "dummy", "COLUMNS": "200", "N
 FAULT_BOUND_S = 10.0
 """Every command must have ended this long after its fault."""
 SEED = int(os.environ.get("SNNKART_FAULT_SEED") or random.SystemRandom().randrange(10**6))
-RANDOM_DRAWS = int(os.environ.get("SNNKART_FAULT_DRAWS") or 8)
+RANDOM_DRAWS = int(os.environ.get("SNNKART_FAULT_DRAWS") or 4)
 """Random mid-episode interrupts per run (each run draws new ones from its printed seed; CI's
 runs add up: ``SNNKART_FAULT_DRAWS=50`` for a long soak)."""
 PHASE_COUNTS: Counter[str] = Counter()

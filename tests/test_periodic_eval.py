@@ -61,7 +61,7 @@ def _metrics(run_dir: Path) -> list[dict[str, object]]:
     return [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # built once per worker, whatever runs between its tests
 def evaluated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Trainer]:
     run = tmp_path_factory.mktemp("evaluated") / "run"
     return run, _trainer(run, [*EVAL, "run.checkpoint_every=1"])

@@ -32,7 +32,7 @@ def _cli(*args: str, timeout: float = 400) -> subprocess.CompletedProcess[str]:
                           timeout=timeout)  # fmt: skip
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # built once per worker, whatever runs between its tests
 def sweep(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two variants of a grid SNN (T = 2; T = 4 with a rate penalty), one seed, one iteration."""
     tmp = tmp_path_factory.mktemp("sweep")
