@@ -62,3 +62,24 @@ def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
             )
             terminalreporter.write_line(f"{n:4d}  {phase}{took}")
         terminalreporter.write_line(f"{sum(counts.values()):4d}  in all")
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """``--dist loadgroup`` as xdist documents it: the tests of one ``xdist_group`` on one
+    worker. xdist 3.8 marks a test's group by assigning ``item._nodeid``, which pytest 9 no
+    longer reads (a node's id lives in ``_id``), so every group was spread over the workers
+    and a costly module fixture was built on each. Here the suffix is set where pytest 9 reads
+    it, once, whichever version did it or not."""
+    if not getattr(config.option, "loadgroup", False):
+        return
+    try:
+        from _pytest.nodeid import coerce_node_id  # pytest >= 9
+    except ImportError:  # older pytest: xdist's own hook has set the id
+        return
+    for item in items:
+        groups = {m.args[0] if m.args else m.kwargs.get("name", "default")
+                  for m in item.iter_markers("xdist_group")}  # fmt: skip
+        suffix = "@" + "_".join(sorted(map(str, groups)))
+        if groups and not item.nodeid.endswith(suffix):
+            item._id = coerce_node_id(item.nodeid + suffix)  # type: ignore[attr-defined]
