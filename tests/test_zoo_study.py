@@ -4,6 +4,7 @@ seeds), its resumability, its statistics against hand computation, and its confi
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -162,3 +163,20 @@ def test_the_published_cartpole_study_solves_on_every_seed_and_deploys_bit_exact
         assert len(s.returns) == 5 and s.solved_seeds == 5, s.policy
     assert {d.policy for d in record.deployed} == {"snn", "sdnn"}
     assert all(d.mismatched_windows == 0 and d.mismatched_actions == 0 for d in record.deployed)
+
+
+def test_no_score_is_normalised_where_the_ann_does_not_beat_a_random_policy() -> None:
+    """(mean - random) / (ANN - random) with the ANN below random flips every sign: a winner
+    would read as below the ANN. Undefined, so left out, in the record and the table."""
+    from types import SimpleNamespace
+
+    from snnkart.report.zoo_record import scores
+
+    def run(policy: str, seed: int, mean: float) -> Any:
+        return SimpleNamespace(policy=policy, seed=seed, wall_s=1.0, steps_per_s=10.0,
+                               summary=SimpleNamespace(mean_return=mean))  # fmt: skip
+
+    below = scores([run("ann", 1, -90.0), run("sb3", 1, 80.0)], floor=-30.0, threshold=None)
+    assert [s.normalised for s in below] == [None, None]
+    above = scores([run("ann", 1, 70.0), run("sb3", 1, 80.0)], floor=-30.0, threshold=None)
+    assert [s.normalised for s in above] == [1.0, 1.1]

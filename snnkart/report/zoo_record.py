@@ -92,7 +92,8 @@ class PolicyScore:
     iqm: float
     iqm_low: float  # 95 % stratified-bootstrap interval of the IQM (over seeds)
     iqm_high: float
-    normalised: float | None  # (mean - random) / (ANN mean - random): 1 is the ANN
+    normalised: float | None  # (mean - random) / (ANN mean - random): 1 is the ANN; None
+    # where the ANN does not beat the random policy (the scale is then undefined)
     solved_seeds: int | None  # seeds whose mean return reaches the reward threshold
     steps_per_s: float | None  # median over seeds
     wall_min: float | None  # median over seeds
@@ -165,7 +166,7 @@ def scores(runs: list[ZooRun], floor: float, threshold: float | None) -> list[Po
                 iqm=iqm(np.asarray(returns)),
                 iqm_low=low,
                 iqm_high=high,
-                normalised=None if not span else (mean - floor) / span,
+                normalised=None if span is None or span <= 0 else (mean - floor) / span,
                 solved_seeds=None if threshold is None else sum(x >= threshold for x in returns),
                 steps_per_s=float(np.median(rates)) if rates else None,
                 wall_min=float(np.median(walls)) if walls else None,

@@ -35,6 +35,10 @@ def zoo_markdown(records: list[Any]) -> str:
         if r.zoo.get("note"):
             head += f" ({r.zoo['note']})"
         head += f". Random policy: {r.random_return:.1f}."
+        ann = next((s for s in r.scores if s.policy == "ann"), None)
+        flat = ann is not None and ann.mean <= r.random_return
+        if flat:
+            head += " snnkart's ANN does not beat it, so no score is normalised (its scale is undefined)."
         if r.reward_threshold is not None:
             head += f" Solved: mean return >= {r.reward_threshold:g}."
         if r.zoo_score:
@@ -49,7 +53,7 @@ def zoo_markdown(records: list[Any]) -> str:
             rows.append(
                 f"| {LABELS.get(s.policy, s.policy)} | {s.mean:.1f} +- {s.std:.1f} | "
                 f"{s.iqm:.1f} [{s.iqm_low:.1f}, {s.iqm_high:.1f}] | {solved} | "
-                f"{_opt(s.normalised, '.2f')} | {_opt(s.steps_per_s, ',.0f')} | "
+                f"{_opt(None if flat else s.normalised, '.2f')} | {_opt(s.steps_per_s, ',.0f')} | "
                 f"{_opt(s.wall_min, '.1f')} |"
             )
         deployed = [_deployed_line(d) for d in r.deployed]
