@@ -142,6 +142,12 @@ def bootstrap_iqm(scores: list[float], seed: int = 0) -> tuple[float, float]:
     return float(low), float(high)
 
 
+def normalisable(ann_mean: float | None, floor: float) -> bool:
+    """Whether scores normalise between the random policy (0) and snnkart's ANN (1): only where
+    the ANN beats the random policy; otherwise the scale is undefined (its sign flips)."""
+    return ann_mean is not None and ann_mean > floor
+
+
 def scores(runs: list[ZooRun], floor: float, threshold: float | None) -> list[PolicyScore]:
     """Per policy, in the order run: its returns over seeds summarised."""
     by: dict[str, list[ZooRun]] = {}
@@ -154,7 +160,6 @@ def scores(runs: list[ZooRun], floor: float, threshold: float | None) -> list[Po
         returns = [r.summary.mean_return for r in group]
         mean = float(np.mean(returns))
         low, high = bootstrap_iqm(returns)
-        span = None if ann_mean is None else ann_mean - floor
         rates = [r.steps_per_s for r in group if r.steps_per_s is not None]
         walls = [r.wall_s / 60 for r in group if r.wall_s is not None]
         out.append(
@@ -166,7 +171,9 @@ def scores(runs: list[ZooRun], floor: float, threshold: float | None) -> list[Po
                 iqm=iqm(np.asarray(returns)),
                 iqm_low=low,
                 iqm_high=high,
-                normalised=None if span is None or span <= 0 else (mean - floor) / span,
+                normalised=(mean - floor) / (ann_mean - floor)
+                if ann_mean is not None and normalisable(ann_mean, floor)
+                else None,
                 solved_seeds=None if threshold is None else sum(x >= threshold for x in returns),
                 steps_per_s=float(np.median(rates)) if rates else None,
                 wall_min=float(np.median(walls)) if walls else None,
