@@ -142,6 +142,11 @@ def bootstrap_iqm(scores: list[float], seed: int = 0) -> tuple[float, float]:
     return float(low), float(high)
 
 
+NORMALISER = "ann"
+"""The study row whose mean return is 1 on the normalised scale (snnkart's ANN; a study role,
+not a kind switch: the zoo study's rows also include Stable-Baselines3)."""
+
+
 def normalisable(ann_mean: float | None, floor: float) -> bool:
     """Whether scores normalise between the random policy (0) and snnkart's ANN (1): only where
     the ANN beats the random policy; otherwise the scale is undefined (its sign flips)."""
@@ -153,7 +158,7 @@ def scores(runs: list[ZooRun], floor: float, threshold: float | None) -> list[Po
     by: dict[str, list[ZooRun]] = {}
     for run in runs:
         by.setdefault(run.policy, []).append(run)
-    ann = by.get("ann")
+    ann = by.get(NORMALISER)
     ann_mean = float(np.mean([r.summary.mean_return for r in ann])) if ann else None
     out = []
     for policy, group in by.items():

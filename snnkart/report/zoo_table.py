@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from snnkart.report.zoo_record import SNNKART_DEFAULTS, normalisable
+from snnkart.report.zoo_record import NORMALISER, SNNKART_DEFAULTS, normalisable
 
 LABELS = {
     "ann": "snnkart ANN",
@@ -35,7 +35,7 @@ def zoo_markdown(records: list[Any]) -> str:
         if r.zoo.get("note"):
             head += f" ({r.zoo['note']})"
         head += f". Random policy: {r.random_return:.1f}."
-        ann = next((s for s in r.scores if s.policy == "ann"), None)
+        ann = next((s for s in r.scores if s.policy == NORMALISER), None)
         flat = ann is not None and not normalisable(ann.mean, r.random_return)
         if flat:
             head += " snnkart's ANN does not beat it, so no score is normalised (its scale is undefined)."
