@@ -24,6 +24,7 @@ from snnkart.errors import ConfigError
 from snnkart.io import write_json
 from snnkart.rl.config import TrainConfig
 from snnkart.rl.normalise import RunningMeanStd
+from snnkart.rl.optim import adam
 from snnkart.rl.policies import ActorCritic
 from snnkart.rl.rollout import normalize_obs
 
@@ -69,7 +70,7 @@ def behaviour_clone(
     obs = torch.as_tensor(normalize_obs(obs_rms, cfg.ppo, rec.obs), dtype=torch.float32)
     actions = torch.as_tensor(rec.actions)
     returns = torch.as_tensor(returns_to_go(rec.rewards, rec.episode_starts, cfg.ppo.gamma))
-    optimizer = torch.optim.Adam(policy.parameters(), lr=bc.learning_rate, eps=1e-5)
+    optimizer = adam(policy.parameters(), lr=bc.learning_rate, eps=1e-5, foreach=None)
     gen = torch.Generator().manual_seed(cfg.seed)
     actor_losses: list[float] = []
     value_losses: list[float] = []

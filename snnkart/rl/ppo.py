@@ -36,6 +36,7 @@ from snnkart.rl.config import TrainConfig
 from snnkart.rl.kinds import policy_for
 from snnkart.rl.normalise import RunningMeanStd
 from snnkart.rl.open_run import OpenedRun, open_run
+from snnkart.rl.optim import adam
 from snnkart.rl.periodic_eval import PeriodicEval
 from snnkart.rl.ppo_loss import clipped_surrogate, value_loss
 from snnkart.rl.rollout import (
@@ -90,9 +91,7 @@ class Trainer:
         self.obs_dim = int(np.prod(env0.observation_space.shape or (0,)))  # the spec's obs_dim
         torch.manual_seed(cfg.seed)
         self.policy = policy_for(cfg, env0) if opened is None else opened.policy
-        self.optimizer = torch.optim.Adam(
-            self.policy.parameters(), lr=p.learning_rate, eps=1e-5, foreach=True
-        )
+        self.optimizer = adam(self.policy.parameters(), p.learning_rate, eps=1e-5, foreach=True)
         self.ent_coef = p.ent_coef  # annealed with the learning rate when ppo.anneal_ent
         self.penalty_weights = self.policy.penalty_weights(0.0)  # the kind's extra loss terms
         self.obs_rms = RunningMeanStd.zeros(self.obs_dim)
