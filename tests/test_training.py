@@ -723,6 +723,7 @@ def learned(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
 
 @pytest.mark.slow
 @pytest.mark.timeout(600)
+@pytest.mark.xdist_group("learning")  # one worker trains the pair (it was built on both)
 @pytest.mark.parametrize("policy", ["ann", "snn"])
 def test_grid_policy_learns_to_drive(learned: dict[str, Path], policy: str) -> None:
     from snnkart.eval.episodes import EvalSummary, run_episodes
